@@ -1,0 +1,69 @@
+"""The built-in transports: in-process virtual, kernel SocketCAN, the software bus, and any
+other python-can interface."""
+
+from __future__ import annotations
+
+import socket
+
+import can
+
+from hil.bus.spec import BusSpec
+from hil.errors import BusError, BusSpecError
+
+
+def open_virtual(spec: BusSpec) -> can.BusABC:
+    """``virtual[:channel]``: python-can's in-process bus (threads of one process only)."""
+    return can.Bus(interface="virtual", channel=spec.channel or "agrihil", **spec.options)
+
+
+def kernel_has_socketcan() -> tuple[bool, str]:
+    """Whether this kernel accepts AF_CAN sockets, and why not when it does not."""
+    if not hasattr(socket, "AF_CAN"):
+        return False, "this Python/OS has no AF_CAN (SocketCAN is Linux-only)"
+    try:
+        sock = socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW)
+    except OSError as exc:
+        return False, f"the kernel refuses AF_CAN sockets ({exc.strerror}): no SocketCAN support"
+    sock.close()
+    return True, "ok"
+
+
+def open_socketcan(spec: BusSpec) -> can.BusABC:
+    """``socketcan:<iface>``: a kernel CAN interface (vcan0, can0, …)."""
+    if not spec.channel:
+        raise BusSpecError("socketcan needs an interface: 'socketcan:vcan0' or 'socketcan:can0'")
+    ok, why = kernel_has_socketcan()
+    if not ok:
+        raise BusError(f"cannot open socketcan:{spec.channel}: {why}; use the software bus "
+                       "instead (`hil bus serve`, spec 'socketcand:127.0.0.1:29536/can0')")
+    import os
+    if not os.path.exists(f"/sys/class/net/{spec.channel}"):
+        raise BusError(f"no network interface {spec.channel!r}; for a virtual one: "
+                       f"`ip link add dev {spec.channel} type vcan && "
+                       f"ip link set up {spec.channel}`")
+    return can.Bus(interface="socketcan", channel=spec.channel, **spec.options)
+
+
+def open_socketcand(spec: BusSpec) -> can.BusABC:
+    """``socketcand:<host>:<port>[/<channel>]``: a socketcand server, e.g. the software bus."""
+    from hil.softbus.server import DEFAULT_CHANNEL, raise_if_unreachable
+
+    target = spec.channel or ""
+    address, _, channel = target.partition("/")
+    host, sep, port_text = address.rpartition(":")
+    if not sep or not host or not port_text.isdigit():
+        raise BusSpecError(f"socketcand spec needs host and port: 'socketcand:127.0.0.1:29536"
+                           f"[/can0]', got 'socketcand:{target}'")
+    port = int(port_text)
+    raise_if_unreachable(host, port)
+    options = {"tcp_tune": True, **spec.options}
+    return can.Bus(interface="socketcand", host=host, port=port,
+                   channel=channel or DEFAULT_CHANNEL, **options)
+
+
+def open_python_can(spec: BusSpec) -> can.BusABC:
+    """Any other installed python-can interface: ``<interface>:<channel>[,key=value…]``."""
+    kwargs = dict(spec.options)
+    if spec.channel is not None:
+        kwargs["channel"] = spec.channel
+    return can.Bus(interface=spec.transport, **kwargs)

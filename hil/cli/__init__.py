@@ -1,0 +1,1 @@
+"""The ``hil`` command: one module per subcommand, each exporting ``add_subparser``."""

@@ -1,0 +1,115 @@
+"""``hil bus``: the software bus (``serve``) and its controls (``fault``, ``stats``)."""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import socket
+import sys
+
+from hil.cli.args import add_host_port
+from hil.errors import BusError
+from hil.softbus.faults import FaultKind
+from hil.softbus.server import SoftwareBus
+
+
+def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    bus = subparsers.add_parser("bus", help="the software CAN bus")
+    sub = bus.add_subparsers(dest="bus_command", metavar="ACTION")
+    sub.required = True
+
+    serve = sub.add_parser("serve", help="run a software bus (socketcand protocol on loopback)")
+    add_host_port(serve)
+    serve.add_argument("--bitrate", type=int, default=None,
+                       help="pace frames to this bit rate with arbitration by id "
+                            "(e.g. 250000 for ISOBUS); default: unpaced")
+    serve.add_argument("--log", default=None,
+                       help="write every frame to this bus log (.log candump, .asc, .blf …)")
+    serve.add_argument("--seed", type=int, default=0, help="seed for probabilistic faults")
+    serve.add_argument("--allow-remote", action="store_true",
+                       help="allow binding to a non-loopback address")
+    serve.set_defaults(func=_serve)
+
+    fault = sub.add_parser("fault", help="inject or clear faults on a running software bus")
+    add_host_port(fault)
+    fault.add_argument("action", choices=["add", "clear", "list", "errors"])
+    fault.add_argument("kind", nargs="?", choices=[k.value for k in FaultKind],
+                       help="with add: what to do to matching frames")
+    fault.add_argument("--id", type=lambda s: int(s, 0), default=None, help="frame id to match")
+    fault.add_argument("--mask", type=lambda s: int(s, 0), default=None,
+                       help="id mask (default: exact match when --id is given, else all)")
+    fault.add_argument("-p", "--probability", type=float, default=1.0)
+    fault.add_argument("--count", type=int, default=0, help="act on at most N frames (0: all)")
+    fault.add_argument("--delay", type=float, default=0.0, help="seconds, with kind delay")
+    fault.add_argument("--rule", type=int, default=None, help="with clear: only this rule")
+    fault.add_argument("-n", type=int, default=1, help="with errors: how many error frames")
+    fault.set_defaults(func=_fault)
+
+    stats = sub.add_parser("stats", help="print a running software bus's counters as JSON")
+    add_host_port(stats)
+    stats.set_defaults(func=_stats)
+
+
+def _serve(args: argparse.Namespace) -> int:
+    bus = SoftwareBus(args.host, args.port, bitrate=args.bitrate, log_path=args.log,
+                      seed=args.seed, allow_remote=args.allow_remote)
+
+    def listening(server: SoftwareBus) -> None:
+        pace = f", paced at {args.bitrate} bit/s" if args.bitrate else ""
+        print(f"hil: software bus listening on {server.host}:{server.port}{pace}; "
+              f"spec {server.spec()}", flush=True)
+
+    asyncio.run(bus.serve(on_listening=listening))
+    return 0
+
+
+def control(host: str, port: int, words: list[str], timeout: float = 5.0) -> str:
+    """Send one ``< hil … >`` command to a running software bus and return its reply."""
+    try:
+        with socket.create_connection((host, port), timeout=timeout) as sock:
+            sock.settimeout(timeout)
+            greeting = sock.recv(64)
+            if not greeting.startswith(b"< hi >"):
+                raise BusError(f"{host}:{port} is not a software bus (got {greeting!r})")
+            sock.sendall(f"< hil {' '.join(words)} >".encode("ascii"))
+            reply = b""
+            while not reply.rstrip().endswith(b">"):
+                chunk = sock.recv(65536)
+                if not chunk:
+                    break
+                reply += chunk
+    except OSError as exc:
+        raise BusError(f"cannot reach the software bus at {host}:{port}: {exc}") from exc
+    text = reply.decode("ascii").strip()
+    if text.startswith("< hil error"):
+        raise BusError(f"software bus refused '{' '.join(words)}': {text[12:-2]}")
+    return text
+
+
+def _fault(args: argparse.Namespace) -> int:
+    if args.action == "add":
+        if args.kind is None:
+            print("hil: error: 'fault add' needs a kind", file=sys.stderr)
+            return 2
+        words = ["fault", "add", args.kind, f"p={args.probability}", f"count={args.count}"]
+        if args.id is not None:
+            words.append(f"id={args.id:#x}")
+        if args.mask is not None:
+            words.append(f"mask={args.mask:#x}")
+        if args.delay:
+            words.append(f"delay={args.delay}")
+    elif args.action == "clear":
+        words = ["fault", "clear"] + ([str(args.rule)] if args.rule is not None else [])
+    elif args.action == "list":
+        words = ["fault", "list"]
+    else:
+        words = ["errors", str(args.n)]
+    print(control(args.host, args.port, words))
+    return 0
+
+
+def _stats(args: argparse.Namespace) -> int:
+    reply = control(args.host, args.port, ["stats"])
+    print(json.dumps(json.loads(reply[len("< hil stats "):-2]), indent=2))
+    return 0

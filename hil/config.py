@@ -1,0 +1,153 @@
+"""TOML files into frozen dataclasses, with errors that name the file and the key.
+
+Every configuration in agrihil (rig configs, DUT profiles, scenarios) is pure data: a frozen
+dataclass whose fields map one-to-one onto TOML keys. :func:`from_mapping` builds one from a
+mapping and rejects unknown keys, missing keys and wrong types; :func:`load_toml` reads a file
+and does the same, naming the file in every error.
+
+Supported field types: ``bool``, ``int``, ``float`` (ints accepted), ``str``, nested frozen
+dataclasses, ``tuple[T, ...]`` of those, ``dict[str, T]``, ``Literal[...]`` and ``X | None``.
+
+Example
+-------
+>>> from dataclasses import dataclass
+>>> @dataclass(frozen=True)
+... class Motor:
+...     ke_v_per_krpm: float
+...     poles: int = 2
+>>> from_mapping(Motor, {"ke_v_per_krpm": 7.1})
+Motor(ke_v_per_krpm=7.1, poles=2)
+>>> from_mapping(Motor, {"ke_v_per_krpm": 7.1, "pole": 3})
+Traceback (most recent call last):
+...
+hil.errors.ConfigError: [pole] unknown key (expected one of: ke_v_per_krpm, poles)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+import types
+import typing
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, Literal, TypeVar, get_args, get_origin, get_type_hints
+
+from hil.errors import ConfigError
+
+T = TypeVar("T")
+
+
+def load_toml(path: str | Path, cls: type[T], *, section: str | None = None) -> T:
+    """Read ``path`` (optionally only its ``[section]``) into the frozen dataclass ``cls``."""
+    path = Path(path)
+    try:
+        with path.open("rb") as fh:
+            data = tomllib.load(fh)
+    except FileNotFoundError as exc:
+        raise ConfigError("file not found", path=str(path)) from exc
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"not valid TOML: {exc}", path=str(path)) from exc
+    if section is not None:
+        if section not in data:
+            raise ConfigError("missing section", path=str(path), key=section)
+        data = data[section]
+    return from_mapping(cls, data, path=str(path), prefix=section or "")
+
+
+def from_mapping(cls: type[T], data: Mapping[str, Any], *, path: str | None = None,
+                 prefix: str = "") -> T:
+    """Build the dataclass ``cls`` from ``data``; errors name ``path`` and the dotted key."""
+    if not dataclasses.is_dataclass(cls):
+        raise TypeError(f"{cls!r} is not a dataclass")
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"expected a table, got {type(data).__name__}", path=path,
+                          key=prefix or None)
+    hints = get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
+    unknown = [k for k in data if k not in fields]
+    if unknown:
+        raise ConfigError(
+            f"unknown key (expected one of: {', '.join(sorted(fields))})",
+            path=path, key=_join(prefix, unknown[0]))
+    kwargs: dict[str, Any] = {}
+    for name, field in fields.items():
+        key = _join(prefix, name)
+        if name not in data:
+            if (field.default is dataclasses.MISSING
+                    and field.default_factory is dataclasses.MISSING):
+                raise ConfigError("missing required key", path=path, key=key)
+            continue
+        kwargs[name] = _convert(hints[name], data[name], path=path, key=key)
+    try:
+        return cls(**kwargs)
+    except (TypeError, ValueError) as exc:
+        if isinstance(exc, ConfigError):
+            raise
+        raise ConfigError(str(exc), path=path, key=prefix or None) from exc
+
+
+def _join(prefix: str, name: str) -> str:
+    return f"{prefix}.{name}" if prefix else name
+
+
+def _convert(tp: Any, value: Any, *, path: str | None, key: str) -> Any:
+    origin = get_origin(tp)
+    if tp is Any:
+        return value
+    if origin in (typing.Union, types.UnionType):
+        options = get_args(tp)
+        if value is None and type(None) in options:
+            return None
+        errors = []
+        for option in options:
+            if option is type(None):
+                continue
+            try:
+                return _convert(option, value, path=path, key=key)
+            except ConfigError as exc:
+                errors.append(str(exc))
+        raise ConfigError(f"{value!r} matches none of {tp}", path=path, key=key)
+    if origin is Literal:
+        allowed = get_args(tp)
+        if value not in allowed:
+            raise ConfigError(f"{value!r} is not one of {list(allowed)}", path=path, key=key)
+        return value
+    if origin is tuple:
+        args = get_args(tp)
+        if not isinstance(value, list | tuple):
+            raise ConfigError(f"expected an array, got {type(value).__name__}", path=path,
+                              key=key)
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple(_convert(args[0], v, path=path, key=f"{key}[{i}]")
+                         for i, v in enumerate(value))
+        if len(args) != len(value):
+            raise ConfigError(f"expected {len(args)} items, got {len(value)}", path=path,
+                              key=key)
+        return tuple(_convert(a, v, path=path, key=f"{key}[{i}]")
+                     for i, (a, v) in enumerate(zip(args, value, strict=True)))
+    if origin is dict:
+        _, vtype = get_args(tp)
+        if not isinstance(value, Mapping):
+            raise ConfigError(f"expected a table, got {type(value).__name__}", path=path,
+                              key=key)
+        return {str(k): _convert(vtype, v, path=path, key=f"{key}.{k}") for k, v in value.items()}
+    if dataclasses.is_dataclass(tp):
+        return from_mapping(tp, value, path=path, prefix=key)
+    if tp is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(f"expected true/false, got {value!r}", path=path, key=key)
+        return value
+    if tp is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(f"expected an integer, got {value!r}", path=path, key=key)
+        return value
+    if tp is float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ConfigError(f"expected a number, got {value!r}", path=path, key=key)
+        return float(value)
+    if tp is str:
+        if not isinstance(value, str):
+            raise ConfigError(f"expected a string, got {value!r}", path=path, key=key)
+        return value
+    raise TypeError(f"unsupported field type {tp!r} at {key}")

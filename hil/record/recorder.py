@@ -1,0 +1,157 @@
+"""The run recorder: one directory per run holding everything the run produced.
+
+Layout of ``out_dir``::
+
+    record.json   run id, clock, bus spec, seeds, versions, timing health, measurements, verdict
+    bus.log       candump log of every frame the rig sent or received
+    bus.asc       the same, Vector ASC
+    traces.npz    named signal traces with units (traces.csv on request)
+
+On any exception (Ctrl-C included) leaving the ``with`` block, the recorder writes all of it
+with the verdict ``error`` (or ``aborted``) and the error text, then lets the exception go on.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import platform
+import sys
+import traceback
+import uuid
+from enum import StrEnum
+from importlib import metadata
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+from hil.clock.base import TimingHealth
+from hil.measurements import Measurement, Outcome
+from hil.record.buslog import DEFAULT_FORMATS, BusLog
+from hil.record.traces import TraceSet
+
+
+class Verdict(StrEnum):
+    PASS = "pass"
+    FAIL = "fail"
+    #: bench timing out of bounds: says nothing about the DUT
+    INVALID_BENCH = "invalid-bench"
+    #: the run could not complete (setup error, bus error, DUT silent …)
+    ERROR = "error"
+    #: stopped by the user (Ctrl-C, SIGTERM)
+    ABORTED = "aborted"
+    #: finished without any measurement to judge
+    NO_MEASUREMENTS = "no-measurements"
+
+
+_PACKAGES = ("agrihil", "python-can", "cantools", "canopen", "control", "numpy", "pyserial")
+
+
+def versions() -> dict[str, str]:
+    out = {"python": platform.python_version(), "platform": platform.platform()}
+    for name in _PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def judge(measurements: list[Measurement], timing: TimingHealth | None) -> Verdict:
+    """Verdict of a completed run: invalid bench timing outranks DUT results."""
+    if timing is not None and timing.mode == "realtime" and not timing.valid:
+        return Verdict.INVALID_BENCH
+    if not measurements:
+        return Verdict.NO_MEASUREMENTS
+    if any(m.outcome in (Outcome.FAIL, Outcome.ERROR) for m in measurements):
+        return Verdict.FAIL
+    return Verdict.PASS
+
+
+class Recorder:
+    def __init__(self, out_dir: str | Path, *, run_id: str | None = None,
+                 bus_log_formats: tuple[str, ...] = DEFAULT_FORMATS, csv: bool = False) -> None:
+        self.out_dir = Path(out_dir)
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        self.run_id = run_id or uuid.uuid4().hex[:12]
+        self.traces = TraceSet()
+        self.measurements: list[Measurement] = []
+        self.timing: TimingHealth | None = None
+        self.meta: dict[str, Any] = {}
+        self.seeds: dict[str, int] = {}
+        self.csv = csv
+        self.verdict: Verdict | None = None
+        self.error: str | None = None
+        self.started_at = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
+        self._bus_log_formats = bus_log_formats
+        self.bus_log: BusLog | None = None
+        self._closed = False
+
+    def __enter__(self) -> Recorder:
+        self.bus_log = BusLog(self.out_dir, formats=self._bus_log_formats)
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        if exc is not None:
+            aborted = isinstance(exc, KeyboardInterrupt)
+            self.verdict = Verdict.ABORTED if aborted else Verdict.ERROR
+            self.error = f"{type(exc).__name__}: {exc}"
+            self.meta["traceback"] = "".join(traceback.format_exception(exc_type, exc, tb))[-4000:]
+        self.close()
+
+    def log_frame(self, msg: Any, time_s: float, *, rx: bool) -> None:
+        if self.bus_log is not None:
+            self.bus_log.write(msg, time_s, rx=rx)
+
+    def measure(self, measurement: Measurement) -> Measurement:
+        self.measurements.append(measurement)
+        return measurement
+
+    def record(self) -> dict[str, Any]:
+        verdict = self.verdict or judge(self.measurements, self.timing)
+        return {
+            "run_id": self.run_id,
+            "started_at": self.started_at,
+            "verdict": verdict.value,
+            "error": self.error,
+            "seeds": self.seeds,
+            "timing": self.timing.to_dict() if self.timing else None,
+            "measurements": [m.to_dict() for m in self.measurements],
+            "versions": versions(),
+            "command": sys.argv,
+            "artifacts": self._artifacts(),
+            **self.meta,
+        }
+
+    def _artifacts(self) -> list[str]:
+        names = ["record.json"]
+        if self.bus_log is not None:
+            names += [p.name for p in self.bus_log.paths]
+        names.append("traces.npz")
+        if self.csv:
+            names.append("traces.csv")
+        return names
+
+    def close(self) -> dict[str, Any]:
+        """Write everything; safe to call more than once."""
+        if self._closed:
+            return self.record()
+        self._closed = True
+        problems = []
+        if self.bus_log is not None:
+            try:
+                self.bus_log.close()
+            except Exception as exc:
+                problems.append(f"bus log: {exc}")
+        try:
+            self.traces.save_npz(self.out_dir / "traces.npz")
+            if self.csv:
+                self.traces.save_csv(self.out_dir / "traces.csv")
+        except Exception as exc:
+            problems.append(f"traces: {exc}")
+        record = self.record()
+        if problems:
+            record["recorder_problems"] = problems
+        (self.out_dir / "record.json").write_text(json.dumps(record, indent=2, default=str))
+        return record

@@ -1,0 +1,110 @@
+"""The socketcand ASCII protocol, the subset the software bus speaks.
+
+Messages are ``< word args… >``. A session: the server greets with ``< hi >``, the client
+opens a channel (``< open can0 >`` → ``< ok >``) and switches to raw mode (``< rawmode >`` →
+``< ok >``). Then the client sends ``< send ID LEN B0 B1 … >`` (bytes in hex, space separated)
+and receives ``< frame ID SECONDS.MICROS DATAHEX >`` (data as contiguous hex). An identifier
+written with more than three hex digits is extended (29-bit); this is how socketcand and
+python-can's client tell them apart.
+
+agrihil adds a ``< hil … >`` command family for the software bus's own controls (faults,
+statistics); a plain socketcand client never sends it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from hil.errors import HilError
+
+
+class ProtocolError(HilError, ValueError):
+    """A client sent something that is not valid socketcand."""
+
+
+@dataclass(frozen=True, slots=True)
+class Frame:
+    """A classic CAN data frame (or an error frame) as it travels through the software bus."""
+
+    can_id: int
+    data: bytes
+    extended: bool
+    error: bool = False
+
+    def __post_init__(self) -> None:
+        limit = 0x1FFFFFFF if self.extended else 0x7FF
+        if not 0 <= self.can_id <= limit:
+            kind = "29-bit" if self.extended else "11-bit"
+            raise ProtocolError(f"identifier 0x{self.can_id:X} does not fit {kind}")
+        if len(self.data) > 8:
+            raise ProtocolError(f"classic CAN carries at most 8 data bytes, got {len(self.data)}")
+
+
+def parse_send(body: str) -> Frame:
+    """Parse the arguments of a ``send`` command: ``ID LEN B0 B1 …``.
+
+    >>> parse_send("18FEF100 2 1 ff")
+    Frame(can_id=419361024, data=b'\\x01\\xff', extended=True, error=False)
+    """
+    parts = body.split()
+    if len(parts) < 2:
+        raise ProtocolError(f"'send' needs an id and a length, got {body!r}")
+    id_text, len_text, *byte_texts = parts
+    try:
+        can_id = int(id_text, 16)
+        length = int(len_text, 16)
+        data = bytes(int(b, 16) for b in byte_texts)
+    except ValueError as exc:
+        raise ProtocolError(f"'send' has non-hex fields: {body!r}") from exc
+    if length != len(data):
+        raise ProtocolError(f"'send' says {length} bytes but carries {len(data)}: {body!r}")
+    return Frame(can_id=can_id, data=data, extended=len(id_text) > 3)
+
+
+def format_id(frame: Frame) -> str:
+    """Three hex digits for an 11-bit id, eight for a 29-bit one."""
+    return f"{frame.can_id:08X}" if frame.extended else f"{frame.can_id:03X}"
+
+
+def format_frame(frame: Frame, timestamp: float) -> bytes:
+    """Render a frame as the server sends it to clients."""
+    if frame.error:
+        return f"< error {format_id(frame)} {timestamp:.6f} >".encode("ascii")
+    return f"< frame {format_id(frame)} {timestamp:.6f} {frame.data.hex().upper()} >".encode(
+        "ascii")
+
+
+def format_send(frame: Frame) -> bytes:
+    """Render a frame as a client sends it (used by agrihil's own clients and tests)."""
+    data = " ".join(f"{b:02X}" for b in frame.data)
+    return f"< send {format_id(frame)} {len(frame.data):X} {data} >".encode("ascii")
+
+
+class MessageSplitter:
+    """Cut a TCP byte stream into ``< … >`` messages, keeping partial ones for the next read."""
+
+    MAX_MESSAGE = 512
+
+    def __init__(self) -> None:
+        self._buffer = b""
+
+    def feed(self, chunk: bytes) -> list[str]:
+        """Add ``chunk`` and return the complete messages' bodies (without ``<`` and ``>``)."""
+        buf = self._buffer + chunk
+        out: list[str] = []
+        start = 0
+        while True:
+            open_at = buf.find(b"<", start)
+            if open_at < 0:
+                start = len(buf)
+                break
+            close_at = buf.find(b">", open_at)
+            if close_at < 0:
+                start = open_at
+                break
+            out.append(buf[open_at + 1:close_at].decode("ascii", "replace").strip())
+            start = close_at + 1
+        self._buffer = buf[start:]
+        if len(self._buffer) > self.MAX_MESSAGE:
+            raise ProtocolError(f"message longer than {self.MAX_MESSAGE} bytes without '>'")
+        return out

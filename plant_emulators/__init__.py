@@ -1,0 +1,1 @@
+"""Plant emulators: physical models of the rigs and the CAN devices they play."""
