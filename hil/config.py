@@ -99,6 +99,9 @@ def _convert(tp: Any, value: Any, *, path: str | None, key: str) -> Any:
         options = get_args(tp)
         if value is None and type(None) in options:
             return None
+        non_none = [o for o in options if o is not type(None)]
+        if len(non_none) == 1:
+            return _convert(non_none[0], value, path=path, key=key)
         errors = []
         for option in options:
             if option is type(None):

@@ -48,6 +48,9 @@ DEFAULT_CHANNEL = "can0"
 RAWMODE_HOLD_S = 0.05
 #: A client whose unsent bytes exceed this is too slow: frames for it are dropped and counted.
 MAX_CLIENT_BUFFER = 4 * 1024 * 1024
+#: Kernel send buffer per client socket: without a bound, loopback autotuning lets a client
+#: that never reads hoard megabytes before the user-space bound above ever applies.
+CLIENT_SNDBUF = 256 * 1024
 _ERROR_CLASS_CONTROLLER = 0x004  # CAN_ERR_CRTL, what SocketCAN reports for bus errors
 
 
@@ -117,6 +120,7 @@ class _Client(asyncio.Protocol):
         if sock is not None:
             with contextlib.suppress(OSError):
                 sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, self.server.client_sndbuf)
         peer = transport.get_extra_info("peername")
         self.name = f"{peer[0]}:{peer[1]}" if peer else "client"
         self.server.stats.clients_seen += 1
@@ -212,8 +216,9 @@ class _Server:
     """The state the event loop owns. Use :class:`SoftwareBus` or ``hil bus serve``."""
 
     def __init__(self, *, bitrate: int | None, log_path: Path | None, seed: int,
-                 hold_s: float, max_client_buffer: int) -> None:
+                 hold_s: float, max_client_buffer: int, client_sndbuf: int) -> None:
         self.bitrate = bitrate
+        self.client_sndbuf = client_sndbuf
         self.hold_s = hold_s
         self.max_client_buffer = max_client_buffer
         self.channels: dict[str, list[_Client]] = {}
@@ -361,14 +366,16 @@ class SoftwareBus:
     def __init__(self, host: str = "127.0.0.1", port: int = DEFAULT_PORT, *,
                  bitrate: int | None = None, log_path: str | Path | None = None,
                  seed: int = 0, allow_remote: bool = False, hold_s: float = RAWMODE_HOLD_S,
-                 max_client_buffer: int = MAX_CLIENT_BUFFER) -> None:
+                 max_client_buffer: int = MAX_CLIENT_BUFFER,
+                 client_sndbuf: int = CLIENT_SNDBUF) -> None:
         check_loopback(host, allow_remote)
         if bitrate is not None and bitrate <= 0:
             raise SoftwareBusError(f"bitrate must be positive, got {bitrate}")
         self.host = host
         self.port = port
         self._state = _Server(bitrate=bitrate, log_path=Path(log_path) if log_path else None,
-                              seed=seed, hold_s=hold_s, max_client_buffer=max_client_buffer)
+                              seed=seed, hold_s=hold_s, max_client_buffer=max_client_buffer,
+                              client_sndbuf=client_sndbuf)
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
         self._ready = threading.Event()
