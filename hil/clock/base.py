@@ -131,6 +131,10 @@ class Clock(ABC):
         """The current tick's time (virtual in lockstep, nominal in real time)."""
         return self.tick_index * self.period_s
 
+    def now(self) -> float:
+        """Run time for stamping frames: virtual in lockstep, elapsed wall time in real time."""
+        return self.time_s
+
     def tick(self, n: int = 1) -> int:
         """Advance ``n`` ticks and return the new tick index (waits in real time)."""
         if not self._started:

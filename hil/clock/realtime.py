@@ -69,6 +69,9 @@ class RealtimeClock(Clock):
         """Wall time since start (for the rig's diagnostics, not for physics)."""
         return time.perf_counter() - self._t0
 
+    def now(self) -> float:
+        return self.elapsed_s
+
     def _wait_for(self, tick: int) -> None:
         deadline = self._t0 + tick * self.period_s
         remaining = deadline - time.perf_counter()

@@ -1,0 +1,33 @@
+"""The DUT runner interface: start on a bus spec, report health, stop cleanly."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import Any
+
+from hil.errors import HilError
+
+
+class DutError(HilError, RuntimeError):
+    """The DUT crashed, hung, or could not be started."""
+
+
+class DutRunner(ABC):
+    """Runs one controller under test for the length of a run."""
+
+    name: str = "dut"
+
+    @abstractmethod
+    def start(self, bus_spec: str) -> None:
+        """Start the DUT connected to ``bus_spec``; return when it is on the bus."""
+
+    @abstractmethod
+    def stop(self, timeout: float = 5.0) -> dict[str, Any]:
+        """Stop the DUT (safe to call twice); returns what the record should keep of it."""
+
+    @abstractmethod
+    def check(self) -> None:
+        """Raise :class:`DutError` if the DUT has died."""
+
+    def identity(self) -> dict[str, Any]:
+        return {"name": self.name}

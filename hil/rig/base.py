@@ -1,0 +1,110 @@
+"""The rig base class: physics plus devices; the runner does stepping, frames and recording."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import can
+import numpy as np
+
+from hil.errors import ConfigError
+from hil.rig.device import Device
+from hil.rig.scenario import Scenario, load_scenario
+
+
+@dataclass
+class RigContext:
+    """What a rig gets when it is built for one run."""
+
+    seed: int
+    rng: np.random.Generator
+    #: record a notable thing that happened (fault injected, DUT heartbeat lost …)
+    note: Callable[[float, str, str], None] = field(default=lambda t, kind, detail: None)
+
+
+class Rig(ABC):
+    """A plant emulator: subclasses fill the physics (:meth:`advance`), the devices, the
+    declared inputs/faults, and the trace row. Everything else is the runner's."""
+
+    #: the name the registry knows the rig by
+    name: str = "rig"
+    physics_period_s: float = 0.001
+    #: control period the DUT is paced at in lockstep (SYNC every this many seconds)
+    control_period_s: float = 0.1
+    #: how often the traces get a row
+    trace_period_s: float = 0.01
+    #: scenario inputs the rig takes: name → unit
+    inputs: dict[str, str] = {}
+    #: faults the rig can inject: name → what it does
+    faults: dict[str, str] = {}
+
+    def __init__(self, ctx: RigContext) -> None:
+        self.ctx = ctx
+        self.devices: list[Device] = []
+
+    # --- what subclasses provide ------------------------------------------------------
+    @abstractmethod
+    def advance(self, n: int, dt: float) -> None:
+        """Step the physics ``n`` times by ``dt``; must equal ``n`` single steps exactly."""
+
+    @abstractmethod
+    def set_input(self, name: str, value: float, time_s: float) -> None:
+        """Apply a scenario input (a setpoint, the ground speed …)."""
+
+    @abstractmethod
+    def set_fault(self, name: str, active: bool, target: int | None, time_s: float) -> None:
+        """Inject (``active``) or clear a fault."""
+
+    @abstractmethod
+    def command_ids(self) -> frozenset[int]:
+        """The DUT's command frames the lockstep step waits for after each SYNC."""
+
+    @abstractmethod
+    def trace_signals(self) -> dict[str, tuple[float, str]]:
+        """Name → (value now, unit) for every traced signal; the same names every call."""
+
+    # --- optional -----------------------------------------------------------------------
+    def on_dut_frame(self, msg: can.Message, time_s: float) -> None:
+        """Any frame that no device claimed (the DUT's own status frames, say)."""
+        return None
+
+    def truth(self) -> dict[str, object]:
+        """Ground truth at the end of the run (grams per row, depth statistics …)."""
+        return {}
+
+    def close(self) -> None:
+        """Release resources (serial ports, …)."""
+        return None
+
+    @classmethod
+    def scenario_dir(cls) -> Path:
+        raise NotImplementedError
+
+    @classmethod
+    def scenario_names(cls) -> list[tuple[str, str]]:
+        """(name, description) of every packaged scenario."""
+        out = []
+        for path in sorted(cls.scenario_dir().glob("*.toml")):
+            scenario = load_scenario(path)
+            out.append((scenario.name, scenario.description))
+        return out
+
+    @classmethod
+    def load_scenario(cls, name_or_path: str) -> Scenario:
+        """A packaged scenario by name, or a scenario file by path; checked against the rig."""
+        path = Path(name_or_path)
+        if not path.suffix:
+            path = cls.scenario_dir() / f"{name_or_path}.toml"
+            if not path.exists():
+                names = ", ".join(n for n, _ in cls.scenario_names())
+                raise ConfigError(f"no scenario {name_or_path!r} for rig {cls.name}; "
+                                  f"available: {names}", key="scenario")
+        scenario = load_scenario(path)
+        if scenario.rig != cls.name:
+            raise ConfigError(f"scenario is for rig {scenario.rig!r}, not {cls.name!r}",
+                              path=str(path), key="rig")
+        scenario.check_against(cls.inputs, cls.faults, path=str(path))
+        return scenario

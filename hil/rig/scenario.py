@@ -1,0 +1,102 @@
+"""Scenarios as data: TOML files (or the same dataclasses built in Python).
+
+A scenario names its rig, lasts ``duration_s``, starts from ``initial`` inputs, may follow a
+piecewise-linear ``speed_profile`` ((time s, ground speed m/s) breakpoints), and applies
+timed ``events``: set inputs, inject or clear a fault. Keys and fault names are checked
+against what the rig declares, so a typo is an error naming the file and the key::
+
+    name = "bench-step"
+    description = "target flow steps 23 -> 34 -> 44 g/s"
+    rig = "fertilizer"
+    duration_s = 60.0
+    [initial]
+    target_flow_gps = 0.0
+    [[events]]
+    at_s = 1.0
+    set = { target_flow_gps = 23.0 }
+    [[events]]
+    at_s = 30.0
+    fault = "flow_sensor_silent"
+    target = 2
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from hil.config import load_toml
+from hil.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class Event:
+    at_s: float
+    set: dict[str, float] | None = None
+    fault: str | None = None
+    clear: str | None = None
+    target: int | None = None
+
+    def __post_init__(self) -> None:
+        actions = sum(x is not None for x in (self.set, self.fault, self.clear))
+        if actions != 1:
+            raise ConfigError("an event needs exactly one of set, fault, clear", key="events")
+        if self.at_s < 0:
+            raise ConfigError(f"event time must be >= 0, got {self.at_s}", key="events.at_s")
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    description: str
+    rig: str
+    duration_s: float
+    seed: int = 0
+    initial: dict[str, float] = field(default_factory=dict)
+    speed_profile: tuple[tuple[float, float], ...] = ()
+    events: tuple[Event, ...] = ()
+    tags: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.duration_s <= 0:
+            raise ConfigError(f"duration must be positive, got {self.duration_s}",
+                              key="duration_s")
+        times = [t for t, _ in self.speed_profile]
+        if times != sorted(times):
+            raise ConfigError("speed_profile times must increase", key="speed_profile")
+        object.__setattr__(self, "events", tuple(sorted(self.events, key=lambda e: e.at_s)))
+
+    def speed_at(self, time_s: float) -> float | None:
+        """Ground speed from the profile (linear between breakpoints), or None without one."""
+        points = self.speed_profile
+        if not points:
+            return None
+        if time_s <= points[0][0]:
+            return points[0][1]
+        for (t0, v0), (t1, v1) in zip(points, points[1:], strict=False):
+            if time_s <= t1:
+                return v0 + (v1 - v0) * (time_s - t0) / (t1 - t0) if t1 > t0 else v1
+        return points[-1][1]
+
+    def check_against(self, inputs: dict[str, str], faults: dict[str, str],
+                      path: str | None = None) -> None:
+        """Refuse keys and faults the rig does not know, naming them."""
+        for key in self.initial:
+            if key not in inputs:
+                raise ConfigError(f"unknown input; the rig takes: {', '.join(sorted(inputs))}",
+                                  path=path, key=f"initial.{key}")
+        for i, event in enumerate(self.events):
+            for key in event.set or {}:
+                if key not in inputs:
+                    raise ConfigError(f"unknown input; the rig takes: "
+                                      f"{', '.join(sorted(inputs))}", path=path,
+                                      key=f"events[{i}].set.{key}")
+            for name in (event.fault, event.clear):
+                if name is not None and name not in faults:
+                    raise ConfigError(f"unknown fault {name!r}; the rig has: "
+                                      f"{', '.join(sorted(faults))}", path=path,
+                                      key=f"events[{i}]")
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    return load_toml(path, Scenario)

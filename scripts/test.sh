@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# The test command: set up, lint, then run the fast test set (long campaigns are marked slow).
+# Pass -m "" to run everything, or any other pytest arguments.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh
+if [[ "${AGRIHIL_NO_VENV:-0}" != "1" ]]; then source .venv/bin/activate; fi
+ruff check .
+set +e
+python -m pytest -q -m "not slow" "$@"
+status=$?
+set -e
+# pytest exits 5 when it collected no tests: that is a broken test run, say so
+if [[ $status -eq 5 ]]; then echo "test.sh: pytest collected no tests" >&2; exit 1; fi
+exit $status
