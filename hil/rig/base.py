@@ -6,6 +6,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 import can
 import numpy as np
@@ -37,9 +38,9 @@ class Rig(ABC):
     #: how often the traces get a row
     trace_period_s: float = 0.01
     #: scenario inputs the rig takes: name → unit
-    inputs: dict[str, str] = {}
+    inputs: ClassVar[dict[str, str]] = {}
     #: faults the rig can inject: name → what it does
-    faults: dict[str, str] = {}
+    faults: ClassVar[dict[str, str]] = {}
 
     def __init__(self, ctx: RigContext) -> None:
         self.ctx = ctx

@@ -22,6 +22,7 @@ against what the rig declares, so a typo is an error naming the file and the key
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -73,7 +74,7 @@ class Scenario:
             return None
         if time_s <= points[0][0]:
             return points[0][1]
-        for (t0, v0), (t1, v1) in zip(points, points[1:], strict=False):
+        for (t0, v0), (t1, v1) in itertools.pairwise(points):
             if time_s <= t1:
                 return v0 + (v1 - v0) * (time_s - t0) / (t1 - t0) if t1 > t0 else v1
         return points[-1][1]

@@ -5,6 +5,7 @@ struct here because this is a test fixture, not a rig the project ships."""
 from __future__ import annotations
 
 import struct
+from typing import ClassVar
 
 import can
 
@@ -37,8 +38,8 @@ class SetpointTerminal(PeriodicDevice):
 
 class ToyRig(Rig):
     name = "toy"
-    inputs = {"setpoint": "m", "ground_speed_mps": "m/s"}
-    faults = {"sensor_silent": "the level sensor stops sending"}
+    inputs: ClassVar[dict[str, str]] = {"setpoint": "m", "ground_speed_mps": "m/s"}
+    faults: ClassVar[dict[str, str]] = {"sensor_silent": "the level sensor stops sending"}
 
     def __init__(self, ctx: RigContext) -> None:
         super().__init__(ctx)
