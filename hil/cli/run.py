@@ -1,16 +1,87 @@
-"""``hil run``: run one scenario of a rig against a DUT."""
+"""``hil run``: run one scenario of a rig against a DUT and record it.
+
+    hil run --rig fertilizer --list-scenarios
+    hil run --rig fertilizer --dut builtin:pi --scenario bench-step --out runs/step --plot
+"""
 
 from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
+
+from hil.cli.args import add_bus_clock
+from hil.errors import ConfigError
+from hil.rig import RunOptions, available_rigs, load_rig, run_scenario
 
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     run = subparsers.add_parser("run", help="run one scenario of a rig against a DUT")
+    run.add_argument("--rig", required=True, help=f"rig name ({', '.join(available_rigs())})")
+    run.add_argument("--list-scenarios", action="store_true",
+                     help="print the rig's scenarios, one per line, and exit")
+    run.add_argument("--dut", help="the controller under test: builtin:NAME (a minimal "
+                                   "controller the rig ships)")
+    run.add_argument("--scenario", help="scenario name (see --list-scenarios) or a TOML file")
+    add_bus_clock(run)
+    run.add_argument("--out", default=None, help="output directory (default runs/<scenario>)")
+    run.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    run.add_argument("--plot", action="store_true", help="save plot.png of the main signals")
+    run.add_argument("--csv", action="store_true", help="also write traces.csv")
+    run.add_argument("--step-timeout", type=float, default=2.0,
+                     help="lockstep: seconds to wait for the DUT's answer to SYNC")
     run.set_defaults(func=_run)
 
 
+def _dut_runner(rig_cls: type, dut: str):  # type: ignore[no-untyped-def]
+    from hil.dut import InProcessDut
+
+    kind, _, name = dut.partition(":")
+    builtins = rig_cls.builtin_controllers()
+    if kind == "builtin" and name in builtins:
+        return InProcessDut(builtins[name]())
+    if kind == "builtin":
+        raise ConfigError(f"rig {rig_cls.name} has no built-in controller {name!r}; available: "
+                          f"{', '.join('builtin:' + n for n in builtins)}", key="dut")
+    raise ConfigError(f"unsupported DUT {dut!r}: use builtin:NAME "
+                      f"({', '.join('builtin:' + n for n in builtins)})", key="dut")
+
+
 def _run(args: argparse.Namespace) -> int:
-    print("hil: 'run' is not built yet (see issue: fertilizer rig)", file=sys.stderr)
-    return 2
+    rig_cls = load_rig(args.rig)
+    if args.list_scenarios:
+        for name, description in rig_cls.scenario_names():
+            print(f"{name}  {description}")
+        return 0
+    if not args.scenario or not args.dut:
+        print("hil: error: --scenario and --dut are needed (or --list-scenarios)",
+              file=sys.stderr)
+        return 2
+    scenario = rig_cls.load_scenario(args.scenario)
+    dut = _dut_runner(rig_cls, args.dut)
+    out = Path(args.out or f"runs/{scenario.name}")
+    print(f"hil: running {rig_cls.name}/{scenario.name} ({scenario.duration_s:g} s, "
+          f"{args.clock}) against {args.dut} on {args.bus}", file=sys.stderr)
+    result = run_scenario(rig_cls, scenario, dut,
+                          RunOptions(out_dir=out, clock=args.clock, bus=args.bus, seed=args.seed,
+                                     csv=args.csv, step_timeout_s=args.step_timeout))
+    if args.plot:
+        from hil.plot import plot_traces
+        from hil.record import load_traces
+
+        arrays, units = load_traces(out / "traces.npz")
+        plot_traces(arrays, units, rig_cls.plot_groups, out / "plot.png",
+                    f"{rig_cls.name} / {scenario.name} ({args.clock}, {args.dut})")
+    record = result.record
+    timing = record.get("timing") or {}
+    print(f"hil: {record['verdict']}: {result.sim_s:.1f} s simulated in {result.wall_s:.2f} s "
+          f"(x{result.realtime_factor:,.0f}); wrote {out}/", file=sys.stderr)
+    if timing.get("mode") == "realtime":
+        print(f"hil: timing: lateness p50 {timing['lateness_p50_s'] * 1e6:.0f} us, p99 "
+              f"{timing['lateness_p99_s'] * 1e6:.0f} us, max "
+              f"{timing['lateness_max_s'] * 1e6:.0f} us, {timing['misses']} misses, "
+              f"{timing['scheduler']}", file=sys.stderr)
+    if record["error"]:
+        print(f"hil: run failed: {record['error']}", file=sys.stderr)
+        return 1
+    return 1 if record["verdict"] == "invalid-bench" else 0

@@ -76,6 +76,14 @@ class Rig(ABC):
         """Ground truth at the end of the run (grams per row, depth statistics …)."""
         return {}
 
+    #: panels of ``hil run --plot``: (title, [trace names])
+    plot_groups: ClassVar[list[tuple[str, list[str]]]] = []
+
+    @classmethod
+    def builtin_controllers(cls) -> dict[str, Callable[[], object]]:
+        """Minimal in-process controllers shipped with the rig (``--dut builtin:NAME``)."""
+        return {}
+
     def close(self) -> None:
         """Release resources (serial ports, …)."""
         return None

@@ -1,0 +1,211 @@
+"""A CANopen slave node the rig plays, on canopen's ``LocalNode`` and the device's EDS.
+
+canopen supplies the object dictionary, the SDO server and NMT; what ``LocalNode`` does not do
+(see the project's measurements) is done here, scheduled by the rig's clock rather than by
+canopen's wall-clock threads so it works in lockstep:
+
+* heartbeats at the period in 0x1017 (canopen would start a ``send_periodic`` thread);
+* TPDOs on SYNC (transmission types 1-240, every n-th SYNC) and on their event timer (254/255);
+* received RPDOs written into the object dictionary (``set_data``, so write callbacks fire).
+
+Frames canopen wants to send (SDO responses, say) are collected by :class:`_RigNetwork`, a
+``canopen.Network`` whose ``send_message`` appends to an outbox instead of touching a bus: the
+documented way to put canopen on a custom backend. The runner sends them, so they are logged.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import can
+import canopen
+from canopen.pdo.base import PdoMap
+
+from hil.rig.device import Device
+
+NMT_STATES = {"INITIALISING": 0x00, "STOPPED": 0x04, "OPERATIONAL": 0x05,
+              "PRE-OPERATIONAL": 0x7F}
+SYNC_ID = 0x080
+
+
+class _NoTask:
+    """What ``send_periodic`` returns here: the rig schedules periodic frames itself."""
+
+    def stop(self) -> None:
+        return None
+
+    def update(self, data: bytes) -> None:
+        return None
+
+
+class _RigNetwork(canopen.Network):
+    def __init__(self) -> None:
+        super().__init__(bus=None)
+        self.outbox: list[can.Message] = []
+
+    def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:
+        self.outbox.append(can.Message(arbitration_id=can_id, data=bytes(data),
+                                       is_extended_id=can_id > 0x7FF, is_remote_frame=remote))
+
+    def send_periodic(self, can_id: int, data: bytes, period: float,
+                      remote: bool = False) -> Any:
+        return _NoTask()
+
+    def take(self) -> list[can.Message]:
+        out, self.outbox = self.outbox, []
+        return out
+
+
+class CanopenDevice(Device):
+    """A CANopen node from an EDS. ``autostart``: go operational after boot-up without waiting
+    for an NMT start (as I/O modules with NMT startup 0x1F80 bit 2 do)."""
+
+    def __init__(self, name: str, node_id: int, eds: str | Path, *,
+                 autostart: bool = True) -> None:
+        self.name = name
+        self.node_id = node_id
+        self.network = _RigNetwork()
+        self.node = canopen.LocalNode(node_id, str(eds))
+        self.network.add_node(self.node)
+        self.autostart = autostart
+        self._booted = False
+        self._sync_count = 0
+        self._event_due: dict[int, float] = {}
+        self._heartbeat_due = 0.0
+        self.node.nmt.state = "PRE-OPERATIONAL"
+        self._reload_pdos()
+
+    # --- object dictionary helpers -------------------------------------------------------
+    def read(self, index: int, subindex: int = 0) -> Any:
+        """The value the object dictionary holds now (what the DUT last wrote, say)."""
+        obj = self.node.object_dictionary[index]
+        if isinstance(obj, canopen.objectdictionary.ODVariable):
+            return self.node.sdo[index].raw
+        return self.node.sdo[index][subindex].raw
+
+    def write(self, index: int, subindex: int, value: Any) -> None:
+        """Set a value from the device side (a sensor reading, a statusword)."""
+        obj = self.node.object_dictionary[index]
+        if not isinstance(obj, canopen.objectdictionary.ODVariable):
+            obj = obj[subindex]
+        self.node.data_store.setdefault(index, {})[subindex] = obj.encode_raw(value)
+
+    @property
+    def operational(self) -> bool:
+        return bool(self.node.nmt.state == "OPERATIONAL")
+
+    def heartbeat_period_s(self) -> float:
+        try:
+            ms = int(self.node.sdo[0x1017].raw)
+        except (KeyError, canopen.SdoAbortedError):
+            return 0.0
+        return ms / 1000.0
+
+    def _reload_pdos(self) -> None:
+        self.node.tpdo.read(from_od=False)
+        self.node.rpdo.read(from_od=False)
+        self._rpdo_by_id: dict[int, PdoMap] = {
+            m.cob_id: m for m in self.node.rpdo.map.values() if m.enabled and m.cob_id}
+        self._tpdos = [m for m in self.node.tpdo.map.values() if m.enabled and m.cob_id]
+
+    # --- Device ----------------------------------------------------------------------------
+    def next_due(self, time_s: float) -> float:
+        if not self._booted:
+            return 0.0
+        candidates = [math.inf]
+        period = self.heartbeat_period_s()
+        if period > 0:
+            while self._heartbeat_due <= time_s + 1e-9:
+                self._heartbeat_due += period
+            candidates.append(self._heartbeat_due)
+        for key, due in self._event_due.items():
+            while due <= time_s + 1e-9:
+                due += self._event_period(key)
+            self._event_due[key] = due
+            candidates.append(due)
+        return min(candidates)
+
+    def _event_period(self, key: int) -> float:
+        tpdo = self.node.tpdo.map[key]
+        return max(1, tpdo.event_timer or 0) / 1000.0
+
+    def emit(self, time_s: float) -> list[can.Message]:
+        if self.silent:
+            return []
+        out: list[can.Message] = []
+        if not self._booted:
+            self._booted = True
+            out.append(can.Message(arbitration_id=0x700 + self.node_id, data=b"\x00",
+                                   is_extended_id=False))          # boot-up
+            if self.autostart:
+                self._enter("OPERATIONAL")
+            period = self.heartbeat_period_s()
+            self._heartbeat_due = period if period > 0 else math.inf
+            return out
+        if self._heartbeat_due <= time_s + 1e-9:
+            out.append(can.Message(arbitration_id=0x700 + self.node_id,
+                                   data=bytes([NMT_STATES.get(self.node.nmt.state, 0x7F)]),
+                                   is_extended_id=False))
+        if self.operational:
+            for key, due in self._event_due.items():
+                if due <= time_s + 1e-9:
+                    out.append(self._tpdo_frame(self.node.tpdo.map[key]))
+        return out
+
+    def accepts(self, msg: can.Message) -> bool:
+        can_id = msg.arbitration_id
+        return (not msg.is_extended_id and (can_id in (0x000, SYNC_ID, 0x600 + self.node_id)
+                                            or can_id in self._rpdo_by_id))
+
+    def on_frame(self, msg: can.Message, time_s: float) -> list[can.Message]:
+        if self.silent:
+            return []
+        can_id, data = msg.arbitration_id, bytes(msg.data)
+        if can_id == SYNC_ID:
+            return self._on_sync() if self.operational else []
+        if can_id in self._rpdo_by_id:
+            if self.operational:
+                self._store_rpdo(self._rpdo_by_id[can_id], data)
+            return []
+        before = self.node.nmt.state
+        self.network.notify(can_id, data, time_s)
+        if can_id == 0x000 and self.node.nmt.state != before:
+            self._enter(self.node.nmt.state)
+        return self.network.take()
+
+    def _enter(self, state: str) -> None:
+        self.node.nmt.state = state
+        if state == "OPERATIONAL":
+            self._reload_pdos()
+            self._event_due = {}
+            for key, tpdo in self.node.tpdo.map.items():
+                if tpdo in self._tpdos and (tpdo.trans_type or 0) >= 254 and tpdo.event_timer:
+                    self._event_due[key] = 0.0
+
+    def _on_sync(self) -> list[can.Message]:
+        self._sync_count += 1
+        self.before_sync()
+        out = []
+        for tpdo in self._tpdos:
+            n = tpdo.trans_type or 0
+            if 1 <= n <= 240 and self._sync_count % n == 0:
+                out.append(self._tpdo_frame(tpdo))
+        return out
+
+    def before_sync(self) -> None:
+        """Hook: refresh the object dictionary from the physics before TPDOs are sampled."""
+        return None
+
+    def _tpdo_frame(self, tpdo: PdoMap) -> can.Message:
+        for var in tpdo.map:
+            var.set_data(self.node.get_data(var.index, var.subindex))
+        return can.Message(arbitration_id=tpdo.cob_id, data=bytes(tpdo.data),
+                           is_extended_id=False)
+
+    def _store_rpdo(self, rpdo: PdoMap, data: bytes) -> None:
+        rpdo.data = bytearray(data.ljust(len(rpdo.data), b"\x00"))
+        for var in rpdo.map:
+            self.node.set_data(var.index, var.subindex, var.get_data())
+
