@@ -68,6 +68,10 @@ class Rig(ABC):
         """Name → (value now, unit) for every traced signal; the same names every call."""
 
     # --- optional -----------------------------------------------------------------------
+    def admits(self, msg: can.Message) -> bool:
+        """Whether a received frame reaches the rig's nodes at all (False: a cut wire)."""
+        return True
+
     def on_dut_frame(self, msg: can.Message, time_s: float) -> None:
         """Any frame that no device claimed (the DUT's own status frames, say)."""
         return None

@@ -100,6 +100,8 @@ class _Loop:
         if msg.is_error_frame:
             self.rig.ctx.note(self.clock.time_s, "bus-error", "error frame received")
             return
+        if not self.rig.admits(msg):
+            return
         t = self.clock.time_s
         for device in self.rig.devices:
             if device.accepts(msg):

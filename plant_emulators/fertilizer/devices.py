@@ -1,0 +1,156 @@
+"""The fertilizer rig's CAN nodes, as the controller under test sees them.
+
+Every frame is encoded through the rig's DBC (:class:`FertilizerDatabase`) or, for the CANopen
+analog output module, through its EDS; nothing here packs bytes by hand.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import can
+
+from hil.rig.canopen_device import CanopenDevice
+from hil.rig.device import PeriodicDevice
+
+if TYPE_CHECKING:
+    from plant_emulators.fertilizer.analog_output import AnalogOutputChannel
+    from plant_emulators.fertilizer.flow_sensor import FlowReport, FlowSensor
+    from plant_emulators.fertilizer.frames import FertilizerDatabase
+    from plant_emulators.fertilizer.ground_speed import GroundSpeedModel
+
+#: how often a flow module's firmware is polled for finished windows: its reports go out
+#: within this long of the window closing
+FLOW_POLL_S = 0.01
+
+
+class FlowModuleDevice(PeriodicDevice):
+    """Capacitive flow detection module of one row: sends each finished window's report.
+
+    ``stale``: the module keeps sending its last report unchanged (frozen firmware)."""
+
+    def __init__(self, row: int, sensor: FlowSensor, db: FertilizerDatabase) -> None:
+        super().__init__(f"flow module {row}", FLOW_POLL_S)
+        self.row = row
+        self.sensor = sensor
+        self.db = db
+        self.stale = False
+        self.last: FlowReport | None = None
+        self.reported_flow_gps = math.nan
+
+    def frames(self, time_s: float) -> list[can.Message]:
+        reports = self.sensor.take_reports()
+        if self.stale:
+            return [self.db.flow_module(self.row, self.last)] if reports and self.last else []
+        out = []
+        for report in reports:
+            self.last = report
+            self.reported_flow_gps = report.flow_gps
+            out.append(self.db.flow_module(self.row, report))
+        return out
+
+    def emit(self, time_s: float) -> list[can.Message]:
+        if self.silent:
+            self.sensor.take_reports()   # the firmware keeps measuring; nothing leaves the node
+            return []
+        return self.frames(time_s)
+
+
+class GroundWheelDevice(PeriodicDevice):
+    """The Hall ground-wheel speed node of [F]."""
+
+    def __init__(self, speed: GroundSpeedModel, db: FertilizerDatabase, period_s: float) -> None:
+        super().__init__("ground wheel speed", period_s)
+        self.speed = speed
+        self.db = db
+        self.counter = 0
+
+    def frames(self, time_s: float) -> list[can.Message]:
+        self.counter = (self.counter + 1) % 256
+        return [self.db.ground_wheel_speed(self.speed.hall_report(), self.counter)]
+
+
+class TractorSpeedDevice(PeriodicDevice):
+    """The tractor ECU's ISO 11783 speed messages: PGN 65096 (wheel) and 65097 (ground)."""
+
+    def __init__(self, speed: GroundSpeedModel, db: FertilizerDatabase, period_s: float) -> None:
+        super().__init__("tractor ECU speed", period_s, offset_s=0.005)
+        self.speed = speed
+        self.db = db
+
+    def frames(self, time_s: float) -> list[can.Message]:
+        return [self.db.wheel_based_speed(self.speed.wheel_based_report()),
+                self.db.ground_based_speed(self.speed.ground_based_report())]
+
+
+class TerminalDevice(PeriodicDevice):
+    """The operator terminal / task controller sending setpoints to the controller."""
+
+    def __init__(self, db: FertilizerDatabase, period_s: float, rows: int) -> None:
+        super().__init__("terminal setpoints", period_s, offset_s=0.002)
+        self.db = db
+        self.rows = rows
+        self.mode = 1
+        self.enable = True
+        self.target_flow_gps = 0.0
+        self.rate_kg_per_hm2 = 0.0
+        self.width_m = 0.0
+        self.speed_source = 0
+        self.counter = 0
+
+    def frames(self, time_s: float) -> list[can.Message]:
+        self.counter += 1
+        return [self.db.setpoint(mode=self.mode, enable=self.enable,
+                                 target_flow_gps=self.target_flow_gps,
+                                 target_rate_kg_per_hm2=self.rate_kg_per_hm2,
+                                 working_width_m=self.width_m, speed_source=self.speed_source,
+                                 active_rows=self.rows, counter=self.counter)]
+
+
+class AnalogOutputModule(CanopenDevice):
+    """The C-3402 CAN analog output module (CiA 401): the controller writes the motor command
+    to 0x6411 sub 1 (mV) by RPDO; the module drives the motor's 0-10 V speed input.
+
+    It consumes the controller's heartbeat (0x1016): when the heartbeat is missing for longer
+    than the consumer time, the outputs whose error mode (0x6443) is on go to their error value
+    (0x6444), which is the motor's safe state, until the heartbeat returns."""
+
+    def __init__(self, node_id: int, eds: str, channel: AnalogOutputChannel,
+                 output_sub: int) -> None:
+        super().__init__("analog output module", node_id, eds)
+        self.channel = channel
+        self.output_sub = output_sub
+        consumer = int(self.read(0x1016, 1))
+        self.watched_node = (consumer >> 16) & 0x7F
+        self.consumer_time_s = (consumer & 0xFFFF) / 1000.0
+        self.last_watched_heartbeat_s = -math.inf
+        self.heartbeat_seen = False
+        self.comm_error = False
+
+    def accepts(self, msg: can.Message) -> bool:
+        if msg.arbitration_id == 0x700 + self.watched_node and not msg.is_extended_id:
+            return True
+        return super().accepts(msg)
+
+    def on_frame(self, msg: can.Message, time_s: float) -> list[can.Message]:
+        if msg.arbitration_id == 0x700 + self.watched_node:
+            self.last_watched_heartbeat_s = time_s
+            self.heartbeat_seen = True
+            return []
+        return super().on_frame(msg, time_s)
+
+    def update(self, time_s: float) -> None:
+        """Refresh the communication-error state (called as the physics advances)."""
+        if self.consumer_time_s <= 0 or not self.heartbeat_seen:
+            self.comm_error = False
+            return
+        self.comm_error = time_s - self.last_watched_heartbeat_s > self.consumer_time_s
+
+    def output_volts(self) -> float:
+        """What the module drives onto the motor's speed input now."""
+        if not self.operational:
+            return self.channel.error_volts()
+        if self.comm_error and int(self.read(0x6443, self.output_sub)):
+            return self.channel.volts(int(self.read(0x6444, self.output_sub)))
+        return self.channel.volts(int(self.read(0x6411, self.output_sub)))

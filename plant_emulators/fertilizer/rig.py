@@ -1,0 +1,230 @@
+"""The fertilizer-flow rig of [F]: physics, its CAN nodes, scenarios and truth."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import ClassVar
+
+import can
+
+from hil.errors import ConfigError
+from hil.rig import Rig, RigContext
+from hil.rig.device import Heartbeat
+from plant_emulators.fertilizer.analog_output import AnalogOutputChannel
+from plant_emulators.fertilizer.config import FertilizerRigConfig, load_rig_config
+from plant_emulators.fertilizer.devices import (
+    AnalogOutputModule,
+    FlowModuleDevice,
+    GroundWheelDevice,
+    TerminalDevice,
+    TractorSpeedDevice,
+)
+from plant_emulators.fertilizer.flow_sensor import FlowSensor
+from plant_emulators.fertilizer.frames import FertilizerDatabase
+from plant_emulators.fertilizer.ground_speed import GroundSpeedModel
+from plant_emulators.fertilizer.physics import FertilizerPlant
+
+MODE_FIELD, MODE_BENCH, MODE_CONSTANT = 0, 1, 2
+
+
+class FertilizerRig(Rig):
+    name = "fertilizer"
+    physics_period_s = 0.001
+    control_period_s = 0.1
+    trace_period_s = 0.01
+    inputs: ClassVar[dict[str, str]] = {
+        "terminal_mode": "0 field rate, 1 bench flow, 2 constant speed (FertSetpoint.Mode)",
+        "enable": "0/1: the terminal enables metering",
+        "target_flow_gps": "bench target flow per row, g/s",
+        "rate_kg_per_hm2": "field target rate M, kg/hm2",
+        "width_m": "field working width D, m",
+        "ground_speed_mps": "tractor ground speed the driver holds, m/s",
+        "speed_source": "0 Hall wheel, 1 PGN 65096, 2 PGN 65097 (FertSetpoint.SpeedSource)",
+    }
+    faults: ClassVar[dict[str, str]] = {
+        "flow_sensor_silent": "the flow module of row <target> sends nothing",
+        "flow_sensor_stale": "the flow module of row <target> repeats its last report",
+        "flow_sensor_garbage": "the flow module of row <target> reports garbage",
+        "motor_stall": "the meter shaft jams",
+        "controller_silent": "no frame of the controller reaches the rig (cut wire)",
+    }
+    plot_groups: ClassVar[list[tuple[str, list[str]]]] = [
+        ("flow, row 1 [g/s]", ["target_flow_row_gps", "sensed_flow_1_gps",
+                               "flow_at_sensor_1_gps"]),
+        ("delivered (truth) [g]", ["delivered_total_g", "target_mass_total_g"]),
+        ("motor", ["command_v", "shaft_speed_rpm"]),
+        ("ground speed [m/s]", ["ground_speed_mps", "wheel_speed_mps"]),
+    ]
+
+    def __init__(self, ctx: RigContext, config: FertilizerRigConfig | None = None) -> None:
+        super().__init__(ctx)
+        cfg = config or load_rig_config()
+        self.config = cfg
+        self.db = FertilizerDatabase.from_config(cfg)
+        wiring = cfg.wiring
+        rows = cfg.meter.rows
+        self.rows = rows
+        # fixed construction order: each model spawns its own stream from the run's generator
+        self.plant = FertilizerPlant(cfg, ctx.rng)
+        self.sensors = [FlowSensor(cfg.flow_sensor, ctx.rng) for _ in range(rows)]
+        self.speed = GroundSpeedModel(cfg.ground_speed, ctx.rng)
+        self.analog = AnalogOutputModule(wiring.analog_output_node_id,
+                                         str(wiring.analog_output_eds_file),
+                                         AnalogOutputChannel(cfg.analog_output, ctx.rng),
+                                         wiring.analog_output_channel)
+        self.flow_modules = [FlowModuleDevice(row + 1, sensor, self.db)
+                             for row, sensor in enumerate(self.sensors)]
+        self.terminal = TerminalDevice(self.db, wiring.setpoint_period_ms / 1000.0, rows)
+        self.devices = [
+            *self.flow_modules,
+            GroundWheelDevice(self.speed, self.db, wiring.ground_speed_period_ms / 1000.0),
+            TractorSpeedDevice(self.speed, self.db, wiring.tractor_speed_period_ms / 1000.0),
+            self.terminal,
+            self.analog,
+            *(Heartbeat(f"flow module {i + 1}", node) for i, node in
+              enumerate(wiring.flow_module_node_ids)),
+            Heartbeat("ground wheel speed", wiring.ground_speed_node_id),
+        ]
+        self.dut_node_id = wiring.dut_node_id
+        self.controller_silent = False
+        self.time_s = 0.0
+        self.target_mass_g = 0.0          # per row, integral of the target flow while enabled
+        self.dut_heartbeat_s = -math.inf
+        self.dut_heartbeat_lost = False
+        self.dut_status: dict[str, float] = {}
+        self._passed = list(self.plant.sensor_passed_g)
+
+    # --- physics ---------------------------------------------------------------------------
+    def target_flow_row_gps(self) -> float:
+        """The flow per row the operator asked for, by the truth: field targets follow the
+        true ground speed (eq. 1, Q = 0.1·M·D·v), bench targets are set directly."""
+        if not self.terminal.enable:
+            return 0.0
+        if self.terminal.mode == MODE_FIELD:
+            q = 0.1 * self.terminal.rate_kg_per_hm2 * self.terminal.width_m * self.speed.true_speed_mps
+            return q / self.rows
+        return self.terminal.target_flow_gps
+
+    def advance(self, n: int, dt: float) -> None:
+        self.analog.update(self.time_s)
+        self.plant.command_v = self.analog.output_volts()
+        target = self.target_flow_row_gps()
+        self.speed.advance(n, dt)
+        self.plant.advance(n, dt)
+        span = n * dt
+        passed = self.plant.sensor_passed_g
+        vibration = self.speed.vibration_rms_mps2
+        for row, sensor in enumerate(self.sensors):
+            sensor.vibration_rms_mps2 = vibration
+            sensor.advance(n, dt, (passed[row] - self._passed[row]) / span)
+        self._passed = list(passed)
+        self.target_mass_g += target * span
+        self.time_s += span
+
+    # --- scenario --------------------------------------------------------------------------
+    def set_input(self, name: str, value: float, time_s: float) -> None:
+        t = self.terminal
+        if name == "terminal_mode":
+            if value not in (MODE_FIELD, MODE_BENCH, MODE_CONSTANT):
+                raise ConfigError(f"terminal_mode must be 0, 1 or 2, got {value}", key=name)
+            t.mode = int(value)
+        elif name == "enable":
+            t.enable = bool(value)
+        elif name == "target_flow_gps":
+            t.target_flow_gps = value
+        elif name == "rate_kg_per_hm2":
+            t.rate_kg_per_hm2 = value
+        elif name == "width_m":
+            t.width_m = value
+        elif name == "speed_source":
+            t.speed_source = int(value)
+        elif name == "ground_speed_mps":
+            self.speed.target_speed_mps = value
+        else:
+            raise ConfigError(f"unknown input {name!r}", key=name)
+
+    def set_fault(self, name: str, active: bool, target: int | None, time_s: float) -> None:
+        if name.startswith("flow_sensor_"):
+            if target is None or not 1 <= target <= self.rows:
+                raise ConfigError(f"{name} needs a target row 1..{self.rows}, got {target}",
+                                  key="target")
+            module = self.flow_modules[target - 1]
+            if name == "flow_sensor_silent":
+                module.silent = active
+            elif name == "flow_sensor_stale":
+                module.stale = active
+            else:
+                module.sensor.garbage = active
+        elif name == "motor_stall":
+            self.plant.stalled = active
+        elif name == "controller_silent":
+            self.controller_silent = active
+        else:
+            raise ConfigError(f"unknown fault {name!r}", key=name)
+
+    # --- frames from the controller ---------------------------------------------------------
+    def command_ids(self) -> frozenset[int]:
+        return frozenset({self.db.frame_id("AnalogOutputCommand")})
+
+    def admits(self, msg: can.Message) -> bool:
+        return not self.controller_silent
+
+    def on_dut_frame(self, msg: can.Message, time_s: float) -> None:
+        if msg.arbitration_id == 0x700 + self.dut_node_id:
+            self.dut_heartbeat_s = time_s
+            if self.dut_heartbeat_lost:
+                self.dut_heartbeat_lost = False
+                self.ctx.note(time_s, "dut-heartbeat", "controller heartbeat back")
+            return
+        if msg.arbitration_id == self.db.frame_id("ControllerStatus"):
+            _, signals = self.db.decode(msg)
+            self.dut_status = {k: float(v) for k, v in signals.items()}
+
+    def watch(self, time_s: float) -> None:
+        timeout = self.analog.consumer_time_s or 1.0
+        if (not self.dut_heartbeat_lost and self.dut_heartbeat_s > -math.inf
+                and time_s - self.dut_heartbeat_s > 3 * timeout):
+            self.dut_heartbeat_lost = True
+            self.ctx.note(time_s, "dut-heartbeat", "controller heartbeat lost")
+
+    # --- records -------------------------------------------------------------------------------
+    def trace_signals(self) -> dict[str, tuple[float, str]]:
+        self.watch(self.time_s)
+        p = self.plant
+        out: dict[str, tuple[float, str]] = {
+            "target_flow_row_gps": (self.target_flow_row_gps(), "g/s"),
+            "command_v": (p.command_v, "V"),
+            "motor_speed_rpm": (p.motor_speed_rpm, "rpm"),
+            "shaft_speed_rpm": (p.shaft_speed_rpm, "r/min"),
+            "motor_current_a": (p.motor_current_a, "A"),
+            "ground_speed_mps": (self.speed.true_speed_mps, "m/s"),
+            "wheel_speed_mps": (self.speed.hall_report().wheel_speed_mps, "m/s"),
+            "analog_comm_error": (float(self.analog.comm_error), "1"),
+            "delivered_total_g": (sum(p.delivered_g), "g"),
+            "target_mass_total_g": (self.target_mass_g * self.rows, "g"),
+        }
+        for row in range(self.rows):
+            out[f"flow_at_meter_{row + 1}_gps"] = (p.flow_at_meter_gps[row], "g/s")
+            out[f"flow_at_sensor_{row + 1}_gps"] = (p.flow_at_sensor_gps[row], "g/s")
+            out[f"sensed_flow_{row + 1}_gps"] = (self.flow_modules[row].reported_flow_gps, "g/s")
+            out[f"delivered_{row + 1}_g"] = (p.delivered_g[row], "g")
+        return out
+
+    def truth(self) -> dict[str, object]:
+        p = self.plant
+        return {"delivered_g": list(p.delivered_g), "in_transit_g": list(p.in_transit_g),
+                "delivered_total_g": sum(p.delivered_g),
+                "target_mass_per_row_g": self.target_mass_g,
+                "density_offset_frac": p.density_offset_frac,
+                "row_gain": list(p.row_gain)}
+
+    @classmethod
+    def scenario_dir(cls) -> Path:
+        return Path(__file__).parent / "scenarios"
+
+    @classmethod
+    def builtin_controllers(cls) -> dict[str, Callable[[], object]]:
+        from plant_emulators.fertilizer.controllers import OpenLoopController, PiFlowController
+        return {"pi": PiFlowController, "open-loop": OpenLoopController}
