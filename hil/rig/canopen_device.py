@@ -79,11 +79,14 @@ class CanopenDevice(Device):
 
     # --- object dictionary helpers -------------------------------------------------------
     def read(self, index: int, subindex: int = 0) -> Any:
-        """The value the object dictionary holds now (what the DUT last wrote, say)."""
+        """The value the object dictionary holds now (what the DUT last wrote, say).
+
+        Decoded straight from the node's data store (what its SDO server would answer),
+        without the SDO layer: this runs in the physics loop."""
         obj = self.node.object_dictionary[index]
-        if isinstance(obj, canopen.objectdictionary.ODVariable):
-            return self.node.sdo[index].raw
-        return self.node.sdo[index][subindex].raw
+        if not isinstance(obj, canopen.objectdictionary.ODVariable):
+            obj = obj[subindex]
+        return obj.decode_raw(self.node.get_data(index, subindex))
 
     def write(self, index: int, subindex: int, value: Any) -> None:
         """Set a value from the device side (a sensor reading, a statusword)."""

@@ -159,6 +159,10 @@ class _Loop:
                              (k // trace_ticks + 1) * trace_ticks, *device_due,
                              events[next_event][0] if next_event < len(events) else ticks_total)
                 if self.clock.batches:
+                    # lockstep: the DUT only acts on what the rig sends, so its unawaited frames
+                    # (status, heartbeat) are collected once per control period, after SYNC
+                    if self.barrier.due(k):
+                        self.drain()
                     n = max(1, target - k)
                     k = self.clock.tick(n)
                     rig.advance(n, dt)
@@ -167,7 +171,6 @@ class _Loop:
                         k = self.clock.tick()
                         self.drain()
                         rig.advance(1, dt)
-                self.drain()
         finally:
             self.rec.timing = self.clock.stop()
 

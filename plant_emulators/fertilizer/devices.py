@@ -75,7 +75,7 @@ class TractorSpeedDevice(PeriodicDevice):
     """The tractor ECU's ISO 11783 speed messages: PGN 65096 (wheel) and 65097 (ground)."""
 
     def __init__(self, speed: GroundSpeedModel, db: FertilizerDatabase, period_s: float) -> None:
-        super().__init__("tractor ECU speed", period_s, offset_s=0.005)
+        super().__init__("tractor ECU speed", period_s)
         self.speed = speed
         self.db = db
 
@@ -88,7 +88,7 @@ class TerminalDevice(PeriodicDevice):
     """The operator terminal / task controller sending setpoints to the controller."""
 
     def __init__(self, db: FertilizerDatabase, period_s: float, rows: int) -> None:
-        super().__init__("terminal setpoints", period_s, offset_s=0.002)
+        super().__init__("terminal setpoints", period_s)
         self.db = db
         self.rows = rows
         self.mode = 1
@@ -127,6 +127,7 @@ class AnalogOutputModule(CanopenDevice):
         self.last_watched_heartbeat_s = -math.inf
         self.heartbeat_seen = False
         self.comm_error = False
+        self._volts: float | None = None
 
     def accepts(self, msg: can.Message) -> bool:
         if msg.arbitration_id == 0x700 + self.watched_node and not msg.is_extended_id:
@@ -138,6 +139,7 @@ class AnalogOutputModule(CanopenDevice):
             self.last_watched_heartbeat_s = time_s
             self.heartbeat_seen = True
             return []
+        self._volts = None          # an RPDO, SDO or NMT command may change the output
         return super().on_frame(msg, time_s)
 
     def update(self, time_s: float) -> None:
@@ -145,10 +147,18 @@ class AnalogOutputModule(CanopenDevice):
         if self.consumer_time_s <= 0 or not self.heartbeat_seen:
             self.comm_error = False
             return
-        self.comm_error = time_s - self.last_watched_heartbeat_s > self.consumer_time_s
+        error = time_s - self.last_watched_heartbeat_s > self.consumer_time_s
+        if error != self.comm_error:
+            self.comm_error = error
+            self._volts = None
 
     def output_volts(self) -> float:
         """What the module drives onto the motor's speed input now."""
+        if self._volts is None:
+            self._volts = self._compute_volts()
+        return self._volts
+
+    def _compute_volts(self) -> float:
         if not self.operational:
             return self.channel.error_volts()
         if self.comm_error and int(self.read(0x6443, self.output_sub)):

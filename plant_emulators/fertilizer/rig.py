@@ -103,8 +103,8 @@ class FertilizerRig(Rig):
         if not self.terminal.enable:
             return 0.0
         if self.terminal.mode == MODE_FIELD:
-            q = 0.1 * self.terminal.rate_kg_per_hm2 * self.terminal.width_m * self.speed.true_speed_mps
-            return q / self.rows
+            t = self.terminal
+            return 0.1 * t.rate_kg_per_hm2 * t.width_m * self.speed.true_speed_mps / self.rows
         return self.terminal.target_flow_gps
 
     def advance(self, n: int, dt: float) -> None:
