@@ -91,7 +91,6 @@ class FertilizerRig(Rig):
         self.controller_silent = False
         self.time_s = 0.0
         self.target_mass_g = 0.0          # per row, integral of the target flow while enabled
-        self.dut_heartbeat_s = -math.inf
         self.dut_heartbeat_lost = False
         self.dut_status: dict[str, float] = {}
         self._passed = list(self.plant.sensor_passed_g)
@@ -172,22 +171,20 @@ class FertilizerRig(Rig):
         return not self.controller_silent
 
     def on_dut_frame(self, msg: can.Message, time_s: float) -> None:
-        if msg.arbitration_id == 0x700 + self.dut_node_id:
-            self.dut_heartbeat_s = time_s
-            if self.dut_heartbeat_lost:
-                self.dut_heartbeat_lost = False
-                self.ctx.note(time_s, "dut-heartbeat", "controller heartbeat back")
-            return
         if msg.arbitration_id == self.db.frame_id("ControllerStatus"):
             _, signals = self.db.decode(msg)
             self.dut_status = {k: float(v) for k, v in signals.items()}
 
     def watch(self, time_s: float) -> None:
+        """Note when the controller's heartbeat (consumed by the analog module) stops and
+        when it comes back."""
+        last = self.analog.last_watched_heartbeat_s
         timeout = self.analog.consumer_time_s or 1.0
-        if (not self.dut_heartbeat_lost and self.dut_heartbeat_s > -math.inf
-                and time_s - self.dut_heartbeat_s > 3 * timeout):
-            self.dut_heartbeat_lost = True
-            self.ctx.note(time_s, "dut-heartbeat", "controller heartbeat lost")
+        lost = last > -math.inf and time_s - last > timeout
+        if lost != self.dut_heartbeat_lost:
+            self.dut_heartbeat_lost = lost
+            self.ctx.note(time_s, "dut-heartbeat",
+                          "controller heartbeat lost" if lost else "controller heartbeat back")
 
     # --- records -------------------------------------------------------------------------------
     def trace_signals(self) -> dict[str, tuple[float, str]]:
