@@ -23,7 +23,7 @@ class SyncBarrier:
     def __init__(self, bus: can.BusABC, *, period_ticks: int, await_ids: Collection[int],
                  dispatch: Callable[[can.Message], None], timeout_s: float = 2.0,
                  sync_id: int = SYNC_ID, on_send: Callable[[can.Message], None] | None = None,
-                 with_counter: bool = False) -> None:
+                 with_counter: bool = False, await_any: bool = False) -> None:
         if period_ticks < 1:
             raise ValueError(f"SYNC period must be >= 1 tick, got {period_ticks}")
         self.bus = bus
@@ -34,6 +34,8 @@ class SyncBarrier:
         self.sync_id = sync_id
         self.on_send = on_send
         self.with_counter = with_counter
+        #: True: one of ``await_ids`` completes the step (alternative command frames)
+        self.await_any = await_any
         self.counter = 0
         self.syncs_sent = 0
         self.wait_s_total = 0.0
@@ -70,11 +72,14 @@ class SyncBarrier:
             remaining = deadline - time.monotonic()
             msg = self.bus.recv(max(0.0, remaining)) if remaining > 0 else None
             if msg is None:
-                missing = ", ".join(f"0x{i:X}" for i in sorted(pending))
+                missing = (" or " if self.await_any else ", ").join(
+                    f"0x{i:X}" for i in sorted(pending))
                 raise StepTimeoutError(
                     f"lockstep step at t={time_s:.3f} s: the DUT did not answer SYNC within "
                     f"{self.timeout_s} s (missing frames {missing})")
             self.dispatch(msg)
-            if not msg.is_error_frame:
+            if not msg.is_error_frame and msg.arbitration_id in pending:
+                if self.await_any:
+                    break
                 pending.discard(msg.arbitration_id)
         self.wait_s_total += time.monotonic() - start

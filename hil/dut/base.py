@@ -18,8 +18,10 @@ class DutRunner(ABC):
     name: str = "dut"
 
     @abstractmethod
-    def start(self, bus_spec: str) -> None:
-        """Start the DUT connected to ``bus_spec``; return when it is on the bus."""
+    def start(self, bus_spec: str, env: dict[str, str] | None = None) -> None:
+        """Start the DUT connected to ``bus_spec``; return when it is on the bus.
+
+        ``env``: what the rig offers besides the bus (e.g. ``AGRIHIL_GNSS_PORT``)."""
 
     @abstractmethod
     def stop(self, timeout: float = 5.0) -> dict[str, Any]:

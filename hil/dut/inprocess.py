@@ -26,6 +26,10 @@ class Controller(ABC):
     def on_frame(self, msg: can.Message) -> list[can.Message]:
         """Handle one received frame; return the frames to send in answer."""
 
+    def configure(self, env: dict[str, str]) -> None:
+        """What the rig offers besides the bus (a serial port's path, say)."""
+        return None
+
     def on_start(self) -> list[can.Message]:
         """Frames to send once on joining the bus (boot-up, say)."""
         return []
@@ -42,7 +46,8 @@ class InProcessDut(DutRunner):
         self.frames_in = 0
         self.frames_out = 0
 
-    def start(self, bus_spec: str) -> None:
+    def start(self, bus_spec: str, env: dict[str, str] | None = None) -> None:
+        self.controller.configure(env or {})
         self._bus = open_bus(bus_spec)
         for msg in self.controller.on_start():
             self._bus.send(msg)

@@ -59,6 +59,9 @@ class Rig(ABC):
     def set_fault(self, name: str, active: bool, target: int | None, time_s: float) -> None:
         """Inject (``active``) or clear a fault."""
 
+    #: True: after SYNC the step waits for any one of :meth:`command_ids`, not all of them
+    await_any_command: bool = False
+
     @abstractmethod
     def command_ids(self) -> frozenset[int]:
         """The DUT's command frames the lockstep step waits for after each SYNC."""
@@ -78,6 +81,14 @@ class Rig(ABC):
 
     def truth(self) -> dict[str, object]:
         """Ground truth at the end of the run (grams per row, depth statistics …)."""
+        return {}
+
+    def truth_arrays(self) -> dict[str, np.ndarray]:
+        """Ground truth as arrays (depth per row along the run …), saved as ``truth.npz``."""
+        return {}
+
+    def dut_environment(self) -> dict[str, str]:
+        """Environment a DUT process needs besides the bus (a serial port's path, say)."""
         return {}
 
     #: panels of ``hil run --plot``: (title, [trace names])

@@ -8,7 +8,7 @@ canopen's wall-clock threads so it works in lockstep:
 * TPDOs on SYNC (transmission types 1-240, every n-th SYNC) and on their event timer (254/255);
 * received RPDOs written into the object dictionary (``set_data``, so write callbacks fire).
 
-Frames canopen wants to send (SDO responses, say) are collected by :class:`_RigNetwork`, a
+Frames canopen wants to send (SDO responses, say) are collected by :class:`OutboxNetwork`, a
 ``canopen.Network`` whose ``send_message`` appends to an outbox instead of touching a bus: the
 documented way to put canopen on a custom backend. The runner sends them, so they are logged.
 """
@@ -40,7 +40,10 @@ class _NoTask:
         return None
 
 
-class _RigNetwork(canopen.Network):
+class OutboxNetwork(canopen.Network):
+    """A canopen Network without a bus: frames canopen sends are collected in ``outbox``
+    (take them with :meth:`take`); received frames are fed in with ``notify``."""
+
     def __init__(self) -> None:
         super().__init__(bus=None)
         self.outbox: list[can.Message] = []
@@ -66,7 +69,7 @@ class CanopenDevice(Device):
                  autostart: bool = True) -> None:
         self.name = name
         self.node_id = node_id
-        self.network = _RigNetwork()
+        self.network = OutboxNetwork()
         self.node = canopen.LocalNode(node_id, str(eds))
         self.network.add_node(self.node)
         self.autostart = autostart
@@ -74,6 +77,9 @@ class CanopenDevice(Device):
         self._sync_count = 0
         self._event_due: dict[int, float] = {}
         self._heartbeat_due = 0.0
+        self._pending_sync_rpdos: list[tuple[PdoMap, bytes]] = []
+        #: RPDO values the device refused (no SDO to abort on the PDO path): (index, sub, why)
+        self.rejected: list[tuple[int, int, str]] = []
         self.node.nmt.state = "PRE-OPERATIONAL"
         self._reload_pdos()
 
@@ -170,7 +176,12 @@ class CanopenDevice(Device):
             return self._on_sync() if self.operational else []
         if can_id in self._rpdo_by_id:
             if self.operational:
-                self._store_rpdo(self._rpdo_by_id[can_id], data)
+                rpdo = self._rpdo_by_id[can_id]
+                if 1 <= (rpdo.trans_type or 255) <= 240:
+                    # synchronous RPDO: actuated at the next SYNC (CiA 301)
+                    self._pending_sync_rpdos.append((rpdo, data))
+                else:
+                    self._store_rpdo(rpdo, data)
             return []
         before = self.node.nmt.state
         self.network.notify(can_id, data, time_s)
@@ -189,13 +200,20 @@ class CanopenDevice(Device):
 
     def _on_sync(self) -> list[can.Message]:
         self._sync_count += 1
+        pending, self._pending_sync_rpdos = self._pending_sync_rpdos, []
+        for rpdo, data in pending:
+            self._store_rpdo(rpdo, data)
         self.before_sync()
-        out = []
+        out = self.events()
         for tpdo in self._tpdos:
             n = tpdo.trans_type or 0
             if 1 <= n <= 240 and self._sync_count % n == 0:
                 out.append(self._tpdo_frame(tpdo))
         return out
+
+    def events(self) -> list[can.Message]:
+        """Hook: event frames (EMCY, say) to send at SYNC ahead of the TPDOs."""
+        return []
 
     def before_sync(self) -> None:
         """Hook: refresh the object dictionary from the physics before TPDOs are sampled."""
@@ -210,5 +228,8 @@ class CanopenDevice(Device):
     def _store_rpdo(self, rpdo: PdoMap, data: bytes) -> None:
         rpdo.data = bytearray(data.ljust(len(rpdo.data), b"\x00"))
         for var in rpdo.map:
-            self.node.set_data(var.index, var.subindex, var.get_data())
+            try:
+                self.node.set_data(var.index, var.subindex, var.get_data())
+            except (canopen.SdoAbortedError, ValueError) as exc:
+                self.rejected.append((var.index, var.subindex, str(exc)))
 

@@ -79,11 +79,22 @@ class _Loop:
         self.barrier = SyncBarrier(bus, period_ticks=max(1, round(rig.control_period_s / self.dt)),
                                    await_ids=rig.command_ids(), dispatch=self.intake,
                                    timeout_s=options.step_timeout_s,
-                                   on_send=lambda m: self._log(m, rx=False))
+                                   await_any=rig.await_any_command,
+                                   on_send=self._on_sync_sent)
         self.clock.add_participant(self.barrier)
 
     def _log(self, msg: can.Message, *, rx: bool) -> None:
         self.rec.log_frame(msg, self.clock.now(), rx=rx)
+
+    def _on_sync_sent(self, sync: can.Message) -> None:
+        """The rig's own nodes hear its SYNC too (a bus does not echo a sender's frames):
+        their SYNC-triggered TPDOs follow the SYNC on the bus, as in CANopen."""
+        self._log(sync, rx=False)
+        t = self.clock.time_s
+        for device in self.rig.devices:
+            if device.accepts(sync):
+                for reply in device.on_frame(sync, t):
+                    self.send(reply)
 
     def send(self, msg: can.Message) -> None:
         try:
@@ -219,7 +230,9 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
                              {"t": round(t, 6), "kind": kind, "detail": detail}))
         rig = rig_cls(ctx)
         stack.callback(rig.close)
-        dut.start(spec)
+        dut_env = rig.dut_environment()
+        rec.meta["dut_environment"] = dut_env
+        dut.start(spec, dut_env)
         stack.callback(lambda: rec.meta.__setitem__("dut", dut.stop()))
         loop = _Loop(rig, scenario, bus, rec, options.clock, options)
         try:
@@ -235,6 +248,9 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
         finally:
             sim_s = loop.clock.time_s
             rec.meta["truth"] = rig.truth()
+            truth_arrays = rig.truth_arrays()
+            if truth_arrays:
+                np.savez_compressed(options.out_dir / "truth.npz", **truth_arrays)
             rec.meta["frames"] = {"tx": loop.frames_tx, "rx": loop.frames_rx}
             rec.meta["wall_s"] = time.perf_counter() - wall0
             rec.meta["sim_s"] = sim_s

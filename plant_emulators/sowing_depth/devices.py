@@ -1,0 +1,153 @@
+"""The sowing-depth rig's CAN nodes (and its GNSS serial port), as the controller sees them.
+
+Plain frames are encoded through the rig's DBC (:class:`FrameCodec`); the servo cylinder drive
+is a CANopen CiA 402 node on its EDS whose object dictionary entries are the drive logic's own
+(:class:`~plant_emulators.sowing_depth.cia402.Cia402Drive`).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import can
+import canopen
+
+from hil.rig.canopen_device import CanopenDevice
+from hil.rig.device import PeriodicDevice
+from plant_emulators.sowing_depth.cia402 import DriveObjectError
+from plant_emulators.sowing_depth.frames import (
+    DepthSetpoint,
+    DrawWireFrame,
+    FrameCodec,
+    GroundSpeed,
+    InclinometerFrame,
+)
+
+if TYPE_CHECKING:
+    from plant_emulators.sowing_depth.gnss_serial import GnssSerialPort
+    from plant_emulators.sowing_depth.physics import SowingDepthPlant
+    from plant_emulators.sowing_depth.sensors import DrawWireSensor, Inclinometer
+
+#: ADC values outside this band mean a broken wire or a saturated output (sensor status)
+_INCLINOMETER_VALID_MV = (20, 4980)
+
+
+class ServoDriveDevice(CanopenDevice):
+    """The servo electric cylinder's drive: CiA 402 on CANopen, node id from the wiring.
+
+    Boots pre-operational, as a drive does: the controller (the CANopen master) starts it with
+    NMT, configures it by SDO and runs it by PDO on SYNC."""
+
+    def __init__(self, plant: SowingDepthPlant, node_id: int, eds: str) -> None:
+        self.plant = plant
+        self.drive = plant.drive
+        super().__init__("servo cylinder drive", node_id, eds, autostart=False)
+        self.node.add_read_callback(self._on_read)
+        self.node.add_write_callback(self._on_write)
+
+    def _on_read(self, index: int, subindex: int, od: Any) -> int | None:
+        if self.drive.owns(index, subindex):
+            return int(self.drive.read(index, subindex))
+        return None
+
+    def _on_write(self, index: int, subindex: int, od: Any, data: bytes) -> None:
+        if self.drive.owns(index, subindex):
+            try:
+                self.drive.write(index, subindex, od.decode_raw(data))
+            except DriveObjectError as exc:
+                raise canopen.SdoAbortedError(exc.abort_code) from exc
+
+    def events(self) -> list[can.Message]:
+        """EMCY (0x80 + node id) for each error the drive raised since the last SYNC."""
+        return [can.Message(arbitration_id=0x80 + self.node_id, is_extended_id=False,
+                            data=code.to_bytes(2, "little") + bytes([register]) + bytes(5))
+                for code, register in self.drive.pop_emcy_events()]
+
+
+class DrawWireDevice(PeriodicDevice):
+    def __init__(self, plant: SowingDepthPlant, sensor: DrawWireSensor, codec: FrameCodec,
+                 period_s: float) -> None:
+        super().__init__("draw-wire sensor", period_s)
+        self.plant, self.sensor, self.codec = plant, sensor, codec
+        self.counter = 0
+
+    def frames(self, time_s: float) -> list[can.Message]:
+        position = self.sensor.sample(self.plant.roller_position_mm)
+        if position is None:       # the wire is lost: the node stops sending
+            return []
+        self.counter = (self.counter + 1) % 16
+        return [self.codec.encode(DrawWireFrame(roller_position_mm=position,
+                                                counter=self.counter))]
+
+
+class InclinometerDevice(PeriodicDevice):
+    """The analog input node reading the LVT525H's two 0-5 V outputs, in mV."""
+
+    def __init__(self, plant: SowingDepthPlant, sensor: Inclinometer, codec: FrameCodec,
+                 period_s: float) -> None:
+        super().__init__("inclinometer", period_s)
+        self.plant, self.sensor, self.codec = plant, sensor, codec
+        self.counter = 0
+        self.last_x_mv = 0
+
+    def frames(self, time_s: float) -> list[can.Message]:
+        p = self.plant
+        reading = self.sensor.sample(time_s, p.arm.sensor_angle_deg(p.arm_angle_deg),
+                                     p.machine_roll_deg, p.ground_speed_mps)
+        self.counter = (self.counter + 1) % 16
+        self.last_x_mv = reading.x_mv
+        return [self.codec.encode(InclinometerFrame(
+            x_mv=reading.x_mv, y_mv=reading.y_mv,
+            x_status=_status(reading.x_mv), y_status=_status(reading.y_mv),
+            counter=self.counter))]
+
+
+def _status(mv: int) -> str:
+    lo, hi = _INCLINOMETER_VALID_MV
+    return "below range" if mv < lo else "above range" if mv > hi else "ok"
+
+
+class TractorSpeedDevice(PeriodicDevice):
+    """The tractor ECU's ground-based speed (ISO 11783 PGN 65097)."""
+
+    def __init__(self, plant: SowingDepthPlant, codec: FrameCodec, period_s: float) -> None:
+        super().__init__("tractor ground speed", period_s)
+        self.plant, self.codec = plant, codec
+
+    def frames(self, time_s: float) -> list[can.Message]:
+        return [self.codec.encode(GroundSpeed(speed_mps=self.plant.ground_speed_mps,
+                                              distance_m=self.plant.distance_m))]
+
+
+class TerminalDevice(PeriodicDevice):
+    """The CODESYS terminal sending the depth setpoint."""
+
+    def __init__(self, codec: FrameCodec, period_s: float) -> None:
+        super().__init__("terminal setpoint", period_s)
+        self.codec = codec
+        self.target_depth_mm = 30.0
+        self.enable = True
+        self.manual = False
+        self.manual_roller_position_mm = 0.0
+        self.counter = 0
+
+    def frames(self, time_s: float) -> list[can.Message]:
+        self.counter = (self.counter + 1) % 16
+        return [self.codec.encode(DepthSetpoint(
+            target_depth_mm=self.target_depth_mm,
+            manual_roller_position_mm=self.manual_roller_position_mm,
+            enable="on" if self.enable else "off",
+            mode="manual" if self.manual else "automatic", counter=self.counter))]
+
+
+class GnssDevice(PeriodicDevice):
+    """The BeiDou receiver: NMEA 0183 (RMC, VTG, GGA) at 10 Hz on a pseudo-terminal the DUT
+    opens by path. It sends nothing on the CAN bus."""
+
+    def __init__(self, port: GnssSerialPort, period_s: float = 0.1) -> None:
+        super().__init__("GNSS receiver", period_s)
+        self.port = port
+
+    def frames(self, time_s: float) -> list[can.Message]:
+        self.port.emit(time_s)
+        return []

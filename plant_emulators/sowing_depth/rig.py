@@ -1,0 +1,217 @@
+"""The sowing-depth rig of [D]: physics, its CAN nodes, GNSS serial port, scenarios and truth."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import ClassVar
+
+import can
+import numpy as np
+
+from hil.errors import ConfigError
+from hil.rig import Rig, RigContext
+from plant_emulators.sowing_depth.cia402_objects import ErrorCode
+from plant_emulators.sowing_depth.config import SowingDepthRigConfig, load_rig_config
+from plant_emulators.sowing_depth.devices import (
+    DrawWireDevice,
+    GnssDevice,
+    InclinometerDevice,
+    ServoDriveDevice,
+    TerminalDevice,
+    TractorSpeedDevice,
+)
+from plant_emulators.sowing_depth.frames import FrameCodec
+from plant_emulators.sowing_depth.gnss_serial import GnssSerialPort
+from plant_emulators.sowing_depth.nmea import GnssReceiver
+from plant_emulators.sowing_depth.physics import SowingDepthPlant
+from plant_emulators.sowing_depth.sensors import DrawWireSensor, Inclinometer
+
+EDS = Path(__file__).parent / "db" / "servo_cylinder_cia402.eds"
+#: GB/T 20865-2007: for a target of 30 mm or more the qualified band is target ± 10 mm
+QUALIFIED_BAND_MM = 10.0
+
+
+class SowingDepthRig(Rig):
+    name = "sowing_depth"
+    physics_period_s = 0.001
+    trace_period_s = 0.01
+    inputs: ClassVar[dict[str, str]] = {
+        "target_depth_mm": "depth setpoint from the terminal, mm",
+        "enable": "0/1: the terminal enables depth control",
+        "manual": "0/1: manual mode (the roller goes to manual_roller_position_mm)",
+        "manual_roller_position_mm": "roller position asked in manual mode, mm",
+        "ground_speed_mps": "tractor ground speed, m/s",
+    }
+    faults: ClassVar[dict[str, str]] = {
+        "inclinometer_stuck": "the inclinometer output freezes",
+        "inclinometer_noisy": "the inclinometer output gets very noisy (loose mounting)",
+        "draw_wire_lost": "the draw-wire sensor stops sending",
+        "drive_jammed": "the cylinder rod is blocked (a stone): the drive trips on "
+                        "following error",
+        "drive_overcurrent": "the drive reports an overcurrent fault",
+        "drive_power_lost": "the drive's main power is switched off",
+        "gnss_fix_lost": "the GNSS receiver loses its fix (RMC status V, GGA quality 0)",
+        "controller_silent": "no frame of the controller reaches the rig (cut wire)",
+    }
+    plot_groups: ClassVar[list[tuple[str, list[str]]]] = [
+        ("depth [mm]", ["target_depth_mm", "mean_true_depth_mm", "sensed_depth_mm"]),
+        ("cylinder", ["rod_position_mm", "rod_velocity_mm_s"]),
+        ("drive", ["drive_statusword", "drive_error_code"]),
+        ("ground speed [m/s]", ["ground_speed_mps"]),
+    ]
+
+    def __init__(self, ctx: RigContext, config: SowingDepthRigConfig | None = None) -> None:
+        super().__init__(ctx)
+        cfg = config or load_rig_config()
+        self.config = cfg
+        wiring = cfg.wiring
+        self.control_period_s = wiring.sync_period_ms / 1000.0
+        plant_rng, incl_rng, wire_rng, gnss_rng = ctx.rng.spawn(4)
+        self.plant = SowingDepthPlant(cfg, plant_rng)
+        self.codec = FrameCodec()
+        self.inclinometer = Inclinometer(cfg.inclinometer, incl_rng)
+        self.draw_wire = DrawWireSensor(cfg.draw_wire, wire_rng)
+        self.receiver = GnssReceiver(cfg.gnss, gnss_rng)
+        self.gnss = GnssSerialPort(self.receiver, self.plant)
+        self.drive = ServoDriveDevice(self.plant, wiring.drive_node_id, str(EDS))
+        self.terminal = TerminalDevice(self.codec, wiring.depth_setpoint_period_ms / 1000.0)
+        self.incl_device = InclinometerDevice(self.plant, self.inclinometer, self.codec,
+                                              wiring.inclinometer_period_ms / 1000.0)
+        self.devices = [
+            self.drive,
+            self.incl_device,
+            DrawWireDevice(self.plant, self.draw_wire, self.codec,
+                           wiring.draw_wire_period_ms / 1000.0),
+            TractorSpeedDevice(self.plant, self.codec, wiring.ground_speed_period_ms / 1000.0),
+            self.terminal,
+            GnssDevice(self.gnss),
+        ]
+        self.controller_silent = False
+        self._truth: list = []
+        self._final_truth: dict[str, np.ndarray] | None = None
+        self._since_drain_s = 0.0
+
+    # --- physics --------------------------------------------------------------------------
+    def advance(self, n: int, dt: float) -> None:
+        self.plant.advance(n, dt)
+        self._since_drain_s += n * dt
+        if self._since_drain_s >= 30.0:      # keep the plant's truth lists short on long runs
+            self._since_drain_s = 0.0
+            self._truth.append(self.plant.drain_truth())
+
+    # --- scenario ---------------------------------------------------------------------------
+    def set_input(self, name: str, value: float, time_s: float) -> None:
+        t = self.terminal
+        if name == "target_depth_mm":
+            t.target_depth_mm = value
+        elif name == "enable":
+            t.enable = bool(value)
+        elif name == "manual":
+            t.manual = bool(value)
+        elif name == "manual_roller_position_mm":
+            t.manual_roller_position_mm = value
+        elif name == "ground_speed_mps":
+            if value < 0:
+                raise ConfigError(f"ground speed must be >= 0, got {value}", key=name)
+            self.plant.ground_speed_mps = value
+        else:
+            raise ConfigError(f"unknown input {name!r}", key=name)
+
+    def set_fault(self, name: str, active: bool, target: int | None, time_s: float) -> None:
+        if name == "inclinometer_stuck":
+            self.inclinometer.stuck = active
+        elif name == "inclinometer_noisy":
+            self.inclinometer.noisy = active
+        elif name == "draw_wire_lost":
+            self.draw_wire.lost = active
+        elif name == "drive_jammed":
+            self.plant.cylinder.jammed = active
+        elif name == "drive_overcurrent":
+            if active:
+                self.plant.drive.inject_fault(ErrorCode.CONTINUOUS_OVER_CURRENT)
+            else:
+                self.plant.drive.clear_injected_fault(ErrorCode.CONTINUOUS_OVER_CURRENT)
+        elif name == "drive_power_lost":
+            self.plant.drive.main_power = not active
+        elif name == "gnss_fix_lost":
+            self.receiver.fix_lost = active
+        elif name == "controller_silent":
+            self.controller_silent = active
+        else:
+            raise ConfigError(f"unknown fault {name!r}", key=name)
+
+    def admits(self, msg: can.Message) -> bool:
+        return not self.controller_silent
+
+    #: a CiA 402 master answers SYNC with RPDO1 (profile position) or RPDO2 (velocity)
+    await_any_command = True
+
+    def command_ids(self) -> frozenset[int]:
+        node = self.config.wiring.drive_node_id
+        return frozenset({0x200 + node, 0x300 + node})
+
+    # --- records ------------------------------------------------------------------------------
+    def trace_signals(self) -> dict[str, tuple[float, str]]:
+        from plant_emulators.sowing_depth.sensors import calibration_depth_mm
+
+        p = self.plant
+        drive = p.drive
+        out: dict[str, tuple[float, str]] = {
+            "target_depth_mm": (self.terminal.target_depth_mm, "mm"),
+            "mean_true_depth_mm": (p.mean_true_depth_mm, "mm"),
+            "sensed_depth_mm": (calibration_depth_mm(self.incl_device.last_x_mv)
+                                if self.incl_device.last_x_mv else float("nan"), "mm"),
+            "rod_position_mm": (p.rod_position_mm, "mm"),
+            "rod_velocity_mm_s": (p.rod_velocity_mm_s, "mm/s"),
+            "rod_force_n": (p.rod_force_n, "N"),
+            "motor_current_a": (p.motor_current_a, "A"),
+            "cover_soil_mm": (p.cover_soil_mm, "mm"),
+            "arm_angle_deg": (p.arm_angle_deg, "deg"),
+            "machine_pitch_deg": (p.machine_pitch_deg, "deg"),
+            "ground_speed_mps": (p.ground_speed_mps, "m/s"),
+            "distance_m": (p.distance_m, "m"),
+            "drive_statusword": (float(drive.statusword), "1"),
+            "drive_error_code": (float(drive.error_code), "1"),
+        }
+        return out
+
+    def truth_arrays(self) -> dict[str, np.ndarray]:
+        """Every truth cell of the run (one per 10 mm of travel, per row)."""
+        if self._final_truth is None:
+            cells = [*self._truth, self.plant.drain_truth()]
+            self._truth = []
+            self._final_truth = {
+                name: np.concatenate([getattr(c, name) for c in cells])
+                for name in ("distance_m", "depth_mm", "outlier_kind", "ground_speed_mps",
+                             "rod_position_mm")}
+        return self._final_truth
+
+    def truth(self) -> dict[str, object]:
+        """Seed depth over every truth cell (not yet sampled as [D] samples: the suites do)."""
+        cells = self.truth_arrays()
+        depth = cells["depth_mm"]
+        if depth.size == 0:
+            return {"cells": 0}
+        target = self.terminal.target_depth_mm
+        inside = np.abs(depth - target) <= QUALIFIED_BAND_MM
+        return {"cells": int(depth.shape[0]), "rows": int(depth.shape[1]),
+                "distance_m": float(cells["distance_m"][-1]),
+                "mean_depth_mm": float(depth.mean()), "sd_mm": float(depth.std(ddof=1)),
+                "pass_rate_pct": float(100.0 * inside.mean()),
+                "outlier_fraction_pct": float(100.0 * (cells["outlier_kind"] > 0).mean())}
+
+    def dut_environment(self) -> dict[str, str]:
+        return {"AGRIHIL_GNSS_PORT": self.gnss.path}
+
+    def close(self) -> None:
+        self.gnss.close()
+
+    @classmethod
+    def scenario_dir(cls) -> Path:
+        return Path(__file__).parent / "scenarios"
+
+    @classmethod
+    def builtin_controllers(cls) -> dict[str, Callable[[], object]]:
+        from plant_emulators.sowing_depth.controllers import PiDepthController
+        return {"pi": PiDepthController}
