@@ -64,6 +64,7 @@ class PiDepthController(Controller):
                     "setpoint": wiring.depth_setpoint_frame_id}
         self.drive_nmt = 0x00
         self.statusword = 0
+        self.last_controlword = 0
         self.mode_sent = False
         self.target_mm = 30.0
         self.enabled = False
@@ -107,6 +108,9 @@ class PiDepthController(Controller):
             self.mode_sent = True
         speed = 0.0
         controlword = next_controlword(self.statusword)
+        if controlword == FAULT_RESET and self.last_controlword == FAULT_RESET:
+            controlword = 0x00     # fault reset acts on a rising edge of bit 7: drop it first
+        self.last_controlword = controlword
         if self.enabled and self.depth_mm is not None and controlword == ENABLE_OPERATION:
             error = self.target_mm - self.depth_mm
             limit = self.max_speed_mm_s

@@ -48,7 +48,7 @@ class SowingDepthRig(Rig):
         "inclinometer_noisy": "the inclinometer output gets very noisy (loose mounting)",
         "draw_wire_lost": "the draw-wire sensor stops sending",
         "drive_jammed": "the cylinder rod is blocked (a stone): the drive trips on "
-                        "following error",
+                        "overcurrent or following error",
         "drive_overcurrent": "the drive reports an overcurrent fault",
         "drive_power_lost": "the drive's main power is switched off",
         "gnss_fix_lost": "the GNSS receiver loses its fix (RMC status V, GGA quality 0)",
