@@ -10,7 +10,7 @@ import pytest
 from hil.dut import InProcessDut
 from hil.rig import RunOptions, load_rig, run_scenario
 
-CASES = [("fertilizer", "field-6kmh", "pi")]
+CASES = [("fertilizer", "field-6kmh", "pi"), ("sowing_depth", "depth-step", "pi")]
 
 
 @pytest.mark.parametrize("bus", ["virtual", "softbus"])
