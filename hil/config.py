@@ -154,3 +154,30 @@ def _convert(tp: Any, value: Any, *, path: str | None, key: str) -> Any:
             raise ConfigError(f"expected a string, got {value!r}", path=path, key=key)
         return value
     raise TypeError(f"unsupported field type {tp!r} at {key}")
+
+
+def check_positive(obj: object, *names: str) -> None:
+    """Raise ``ValueError`` naming the first field of ``obj`` among ``names`` that is not > 0.
+
+    For ``__post_init__`` of config dataclasses; :func:`from_mapping` turns the error into a
+    :class:`ConfigError` naming the file and table."""
+    for name in names:
+        value = getattr(obj, name)
+        if not value > 0:
+            raise ValueError(f"{name} must be > 0, got {value!r}")
+
+
+def check_non_negative(obj: object, *names: str) -> None:
+    """As :func:`check_positive`, for fields that must be >= 0."""
+    for name in names:
+        value = getattr(obj, name)
+        if not value >= 0:
+            raise ValueError(f"{name} must be >= 0, got {value!r}")
+
+
+def check_fraction(obj: object, *names: str) -> None:
+    """As :func:`check_positive`, for fields that must lie in [0, 1)."""
+    for name in names:
+        value = getattr(obj, name)
+        if not 0 <= value < 1:
+            raise ValueError(f"{name} must be in [0, 1), got {value!r}")

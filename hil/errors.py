@@ -40,3 +40,7 @@ class StepTimeoutError(HilError, TimeoutError):
 
 class ClockError(HilError, RuntimeError):
     """A clock was used out of order (ticked before start, started twice)."""
+
+
+class FrameError(HilError, ValueError):
+    """A CAN frame cannot be encoded or decoded; the message names the frame and the signal."""

@@ -23,6 +23,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
+from hil.config import check_fraction as _fraction
+from hil.config import check_non_negative as _non_negative
+from hil.config import check_positive as _positive
 from hil.config import load_toml
 
 DEFAULT_RIG_TOML = Path(__file__).with_name("rig.toml")
@@ -32,25 +35,7 @@ RPM_PER_RAD_S = 60.0 / (2.0 * math.pi)
 """Revolutions per minute in one radian per second."""
 
 
-def _positive(obj: object, *names: str) -> None:
-    for name in names:
-        value = getattr(obj, name)
-        if not value > 0:
-            raise ValueError(f"{name} must be > 0, got {value!r}")
 
-
-def _non_negative(obj: object, *names: str) -> None:
-    for name in names:
-        value = getattr(obj, name)
-        if not value >= 0:
-            raise ValueError(f"{name} must be >= 0, got {value!r}")
-
-
-def _fraction(obj: object, *names: str) -> None:
-    for name in names:
-        value = getattr(obj, name)
-        if not 0 <= value < 1:
-            raise ValueError(f"{name} must be in [0, 1), got {value!r}")
 
 
 @dataclass(frozen=True)

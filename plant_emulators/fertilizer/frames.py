@@ -34,7 +34,7 @@ import cantools
 from cantools.database.can import Database, Message, Signal
 from cantools.database.errors import Error as CantoolsError
 
-from hil.errors import ConfigError, HilError
+from hil.errors import ConfigError, FrameError
 from plant_emulators.fertilizer.config import FertilizerRigConfig
 from plant_emulators.fertilizer.flow_sensor import FlowReport, SensorStatus
 from plant_emulators.fertilizer.ground_speed import HallReport, TractorSpeedReport
@@ -62,8 +62,6 @@ SignalValue = int | float
 """A signal's physical value (value tables are carried as their integers)."""
 
 
-class FrameError(HilError, ValueError):
-    """A frame cannot be encoded or decoded; the message names the frame and the signal."""
 
 
 class NmtState:

@@ -27,7 +27,7 @@ import can
 import cantools
 from cantools.database.errors import DecodeError, EncodeError
 
-from hil.errors import HilError
+from hil.errors import FrameError
 
 __all__ = [
     "DBC_PATH",
@@ -48,8 +48,6 @@ DBC_PATH = _DB_DIR / "sowing_depth.dbc"
 EDS_PATH = _DB_DIR / "servo_cylinder_cia402.eds"
 
 
-class FrameError(HilError, ValueError):
-    """A frame cannot be encoded or decoded; the message names the frame and the signal."""
 
 
 @dataclass(frozen=True)
