@@ -46,7 +46,9 @@ from __future__ import annotations
 
 import enum
 import math
+from bisect import bisect_left
 from collections import deque
+from itertools import accumulate, repeat
 from typing import Literal, NamedTuple
 
 import numpy as np
@@ -78,6 +80,44 @@ def _accepted_normal(rng: np.random.Generator) -> float:
         z = float(rng.standard_normal())
         if abs(z) <= _ACCEPTANCE_SIGMAS:
             return z
+
+
+def _crossing(t0: float, step: float, due: float) -> tuple[int, float]:
+    """When a clock that adds ``step`` once per step, starting at ``t0``, first reaches ``due``.
+
+    The additions are the very float operations of ``t += step`` done once per step, in the
+    same order (``itertools.accumulate`` runs them in C), so the result is the step at which
+    the per-step comparison ``t >= due`` would first be true.
+
+    Parameters
+    ----------
+    t0 : float
+        Clock value before the first step.
+    step : float
+        Clock increment per step (> 0).
+    due : float
+        Threshold.
+
+    Returns
+    -------
+    tuple
+        ``(k, t)``: the number of steps (>= 1) and the clock value after them.
+
+    Examples
+    --------
+    >>> _crossing(0.0, 0.001, 0.011)     # 11 steps of 1 ms, with the rounding they carry
+    (11, 0.011000000000000003)
+    """
+    done = 0
+    while True:
+        # Enough steps to cross (plus rounding), in bounded pieces.
+        chunk = min(4096, max(2, int((due - t0) / step) + 2))
+        clock = list(accumulate(repeat(step, chunk), initial=t0))
+        k = bisect_left(clock, due, 1)        # clock is increasing: first value >= due
+        if k < len(clock):
+            return done + k, clock[k]
+        done += chunk
+        t0 = clock[-1]
 
 
 class SensorStatus(enum.IntFlag):
@@ -167,16 +207,27 @@ class FlowSensor:
         sub_s = config.window_s if self.mode == "block" else config.sliding_report_period_s
         self._sub_s = sub_s
         self._subs_per_window = round(config.window_s / sub_s)
+        # Conversion constants, hoisted out of the per-conversion path.
+        self._transit_s = config.sensing_transit_s
+        self._adc_noise_pf = config.adc_noise_rms_af * 1e-6
+        self._vib_pf_per_mps2 = config.vibration_noise_ff_per_mps2 * 1e-3
+        self._noise_vib = 0.0                          # vibration of the cached noise level
+        self._noise_pf = self._noise_level(0.0)
+        self._range_pf = config.adc_range_pf
+        self._lsb_pf = config.adc_lsb_af * 1e-6
 
         # State.
         self._dt: float | None = None
         self._steps = 0
         self._holdup_g = 0.0
         self._inv_tau = 1.0 / (config.sensing_transit_s * (1.0 + self._jitter))
-        self._h_acc = 0.0
-        self._h_count = 0
-        self._t_conv = 0.0
-        self._t_sub = 0.0
+        self._h_acc = 0.0         # Σ holdup over the steps of the running conversion
+        self._conv_start = 0      # step count at the start of the running conversion
+        self._t_conv = 0.0        # module clock since the last conversion (s)
+        # The end of the running block (or sliding sub-) window: step count at which it falls
+        # due and the module clock then (s); scheduled when dt is bound.
+        self._sub_at = 0
+        self._sub_clock = 0.0
         self._baseline_acc = 0.0
         self._baseline_n = 0
         self._baseline_pf: float | None = None
@@ -224,6 +275,11 @@ class FlowSensor:
             raise ValueError(
                 f"dt must be in (0, {min(self._conv_s, self.config.sensing_transit_s)}] s "
                 f"(conversion time and transit time), got {dt!r}")
+        self._step_rig = dt * (1.0 + self.clock_error_ppm * 1e-6)
+        # A small tolerance so that 11 steps of 1 ms make an 11 ms conversion despite rounding.
+        tol = dt * 1e-6
+        self._conv_due, self._sub_due = self._conv_s - tol, self._sub_s - tol
+        self._sub_at, self._sub_clock = _crossing(0.0, self._step_rig, self._sub_due)
         self._dt = dt
 
     def advance(self, n: int, dt: float, flow_gps: float) -> None:
@@ -244,60 +300,86 @@ class FlowSensor:
             raise ValueError(f"n must be >= 0, got {n}")
         self._bind_dt(dt)
         q = flow_gps if flow_gps > 0.0 else 0.0
-        h = self._holdup_g
-        inv_tau = self._inv_tau
-        h_acc, h_count = self._h_acc, self._h_count
-        t_conv, t_sub = self._t_conv, self._t_sub
-        step = dt * (1.0 + self.clock_error_ppm * 1e-6)
-        # A small tolerance so that 11 steps of 1 ms make an 11 ms conversion despite rounding.
-        tol = dt * 1e-6
-        conv_due, sub_due = self._conv_s - tol, self._sub_s - tol
-        conv_s, sub_s = self._conv_s, self._sub_s
+        vibration = self.vibration_rms_mps2
+        if vibration != self._noise_vib:
+            # The vibration is an input held for the whole call: the noise level is
+            # recomputed only when it changes, not at every conversion.
+            self._noise_vib = vibration
+            self._noise_pf = self._noise_level(vibration)
+        step, conv_due, conv_s = self._step_rig, self._conv_due, self._conv_s
+        h, inv_tau = self._holdup_g, self._inv_tau
+        h_acc, conv_start = self._h_acc, self._conv_start
+        t_conv = self._t_conv
         steps = self._steps
-        for _ in range(n):
-            h += dt * (q - h * inv_tau)
-            h_acc += h
-            h_count += 1
-            steps += 1
-            t_conv += step
-            if t_conv >= conv_due:
-                t_conv -= conv_s
-                self._convert(h_acc / h_count)
-                inv_tau = self._inv_tau
-                h_acc = 0.0
-                h_count = 0
-            t_sub += step
-            if t_sub >= sub_due:
-                t_sub -= sub_s
-                self._close_sub_window(steps * dt)
+        end = steps + n
+        sub_at = self._sub_at
+        while True:
+            # Run up to the end of the call or of the window, whichever comes first: the
+            # window's end is scheduled in advance (``_crossing``), which saves the per-step
+            # clock update and test of the window (1 s or 0.1 s away) in this hot loop.
+            stop = end if end < sub_at else sub_at
+            # The loop variable is the step count after the step (no separate counter).
+            for count in range(steps + 1, stop + 1):
+                h += dt * (q - h * inv_tau)
+                h_acc += h
+                t_conv += step
+                if t_conv >= conv_due:
+                    t_conv -= conv_s
+                    inv_tau = self._convert(h_acc / (count - conv_start))
+                    h_acc = 0.0
+                    conv_start = count
+            steps = stop
+            if steps != sub_at:
+                break
+            self._close_sub_window(steps * dt)
+            k, self._sub_clock = _crossing(self._sub_clock - self._sub_s, step,
+                                           self._sub_due)
+            sub_at += k
         self._holdup_g = h
-        self._h_acc, self._h_count = h_acc, h_count
-        self._t_conv, self._t_sub = t_conv, t_sub
+        self._h_acc, self._conv_start = h_acc, conv_start
+        self._t_conv, self._sub_at = t_conv, sub_at
         self._steps = steps
 
-    def _convert(self, holdup_g: float) -> None:
-        """One AD7746 conversion of the mean holdup over the conversion time."""
-        cfg = self.config
+    def _noise_level(self, vibration_rms_mps2: float) -> float:
+        """RMS capacitance noise of one conversion (pF): ADC noise and vibration combined."""
+        return math.hypot(self._adc_noise_pf, self._vib_pf_per_mps2 * vibration_rms_mps2)
+
+    def _convert(self, holdup_g: float) -> float:
+        """One AD7746 conversion of the mean holdup over the conversion time.
+
+        Returns
+        -------
+        float
+            ``1/τ`` of the transit time for the next conversion (it jitters per conversion).
+        """
         z = self._z.next
-        self._jitter = self._jit_a * self._jitter + self._jit_b * z()
-        self._inv_tau = 1.0 / (cfg.sensing_transit_s * (1.0 + self._jitter))
-        self._drift_pf = self._drift_a * self._drift_pf + self._drift_b * z()
-        noise_pf = math.hypot(cfg.adc_noise_rms_af * 1e-6,
-                              cfg.vibration_noise_ff_per_mps2 * 1e-3 * self.vibration_rms_mps2)
-        c = _EMPTY_PIPE_PF + self._drift_pf + self._sensitivity * holdup_g + noise_pf * z()
-        overrange = abs(c) > cfg.adc_range_pf
+        jitter = self._jit_a * self._jitter + self._jit_b * z()
+        self._jitter = jitter
+        inv_tau = 1.0 / (self._transit_s * (1.0 + jitter))
+        self._inv_tau = inv_tau
+        drift = self._drift_pf = self._drift_a * self._drift_pf + self._drift_b * z()
+        c = _EMPTY_PIPE_PF + drift + self._sensitivity * holdup_g + self._noise_pf * z()
+        range_pf = self._range_pf
+        overrange = abs(c) > range_pf
         if overrange:
-            c = math.copysign(cfg.adc_range_pf, c)
-        lsb = cfg.adc_lsb_af * 1e-6
+            c = math.copysign(range_pf, c)
+        lsb = self._lsb_pf
         c = round(c / lsb) * lsb
-        if self._baseline_pf is None:
-            self._baseline_acc += c
-            self._baseline_n += 1
-            if self._baseline_n >= cfg.baseline_samples:
-                self._baseline_pf = self._baseline_acc / self._baseline_n
-            return
-        self._sub_sum_pf += c - self._baseline_pf
-        self._sub_overrange = self._sub_overrange or overrange
+        baseline = self._baseline_pf
+        if baseline is None:
+            self._acquire_baseline(c)
+        else:
+            self._sub_sum_pf += c - baseline
+            if overrange:
+                self._sub_overrange = True
+        return inv_tau
+
+    def _acquire_baseline(self, c: float) -> None:
+        """Start-up: average the first conversions as the empty-pipe capacitance."""
+        self._baseline_acc += c
+        self._baseline_n += 1
+        if self._baseline_n >= self.config.baseline_samples:
+            self._baseline_pf = self._baseline_acc / self._baseline_n
 
     def _close_sub_window(self, now_s: float) -> None:
         """End of a block window or of a sliding sub-window: produce a report."""

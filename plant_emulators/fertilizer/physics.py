@@ -22,6 +22,9 @@ speed controller, so a 0-10 V command sets a *speed* and the plant is command �
    the tube exit. Delivered grams (the truth a scale would weigh) accumulate at the exit.
 
 The hot loop is plain Python floats: numpy per step would cost more than the whole step.
+It runs the drive and the meter step by step (they feed back through the hopper level); the
+transport, which feeds nothing back, then runs row by row over the whole call. Constants of a
+step size are computed once, when the step size is bound.
 Every random value comes from the generator given at construction (per-run values drawn then,
 per-step noise in pre-drawn blocks), so a run is reproducible from its seed and
 ``advance(n, dt)`` equals ``n`` calls of ``advance(1, dt)`` bit for bit.
@@ -40,6 +43,7 @@ Example
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -55,6 +59,115 @@ MAX_STEP_S = 0.005
 _SLOW_UPDATE_S = 0.01
 """Period (s) of the slow random processes (bulk-density wander)."""
 
+_FLUTE_GUARD = 1e-12
+"""Safety margin (flute pitches, per unit of flute index) of the window in which no roller can
+have moved to a new flute (see :func:`_flute_window`): thousands of times the rounding error
+of ``fpos + offset`` (a few 1e-16 per unit)."""
+
+_LINE_TRIM = 256
+"""The transport delay lines grow by one value per step; the values already consumed are
+dropped once there are this many (one ``del`` per line every 256 steps keeps the lines short
+and cache-friendly)."""
+
+
+class _DriveConstants(NamedTuple):
+    """Drive constants for one step size (computed once, when the step size is bound).
+
+    The three ``den``/``dwf`` pairs are the linearly implicit Euler denominator and the
+    friction impulse for each value the current's derivative with respect to the speed can
+    take: ``-Ke/Ra`` on the voltage limit, 0 on the current limit, ``-Kp`` in the PI range.
+    Precomputing them with the same expressions gives the same floats as computing them per
+    step.
+    """
+
+    ke: float
+    kt: float
+    ra: float
+    inv_j: float
+    kp: float
+    ki_dt: float
+    vs: float
+    i_peak: float
+    i_cont: float
+    i_cont2: float
+    budget: float
+    ramp: float
+    bl: float
+    den_emf: float
+    dwf_emf: float
+    den_lim: float
+    dwf_lim: float
+    den_pi: float
+    dwf_pi: float
+
+
+class _MeterConstants(NamedTuple):
+    """Meter, fertilizer and transport constants for one step size."""
+
+    shaft_rpm_per_w: float
+    rev_per_w_step: float
+    coeff: float
+    expo: float
+    knee: float
+    lin_slope: float
+    flutes: float
+    two_pi_flutes: float
+    a1: float
+    a2: float
+    inv_cap: float
+    lsens: float
+    starve: float
+    starve_level: float
+    inv_starve: float
+    slow_steps: int
+    ou_a: float
+    ou_b: float
+
+
+def _implicit_step(dt: float, kt: float, di: float, bl: float, inv_j: float,
+                   t0: float) -> tuple[float, float]:
+    """Denominator of the linearly implicit Euler step and the friction impulse divided by it.
+
+    Parameters
+    ----------
+    dt : float
+        Step (s).
+    kt, di, bl, inv_j, t0 : float
+        Torque constant (N·m/A), d(current)/d(speed) (A·s/rad), viscous load (N·m·s/rad),
+        1/J (1/(kg·m²)), friction-type load torque (N·m).
+
+    Returns
+    -------
+    tuple of float
+        ``(den, dw_friction)``.
+    """
+    den = 1.0 - dt * (kt * di - bl) * inv_j
+    return den, dt * t0 * inv_j / den
+
+
+def _flute_window(offsets: list[float], indices: list[int]) -> tuple[float, float]:
+    """Open interval of ``flutes x revolutions`` in which no row changes flute.
+
+    Row ``r`` is on flute ``int(fpos + offsets[r])``. While ``fpos`` stays strictly inside the
+    returned interval, that value equals ``indices[r]`` for every row, so the per-row check
+    (an ``int()`` per row and step) can be skipped: one comparison per step instead. The
+    interval is shrunk by a margin far above the rounding of ``fpos + offset``; near its ends
+    the exact per-row check runs, so the result never differs from checking every step.
+    """
+    lo, hi = -math.inf, math.inf
+    for off, k in zip(offsets, indices, strict=True):
+        # int() truncates toward zero: int(x) == k on [k, k+1) for k >= 1, on (-1, 1) for
+        # k == 0 and on (k-1, k] for k <= -1.
+        if k >= 1:
+            a, b = k, k + 1
+        elif k == 0:
+            a, b = -1, 1
+        else:
+            a, b = k - 1, k
+        margin = _FLUTE_GUARD * (abs(k) + 2)
+        lo = max(lo, a - off + margin)
+        hi = min(hi, b - off - margin)
+    return lo, hi
 
 
 class FertilizerPlant:
@@ -145,6 +258,13 @@ class FertilizerPlant:
         self._cos_off = [math.cos(2.0 * math.pi * f) for f in flute_offsets]
         self._sin_off = [math.sin(2.0 * math.pi * f) for f in flute_offsets]
         self._flute_index = [int(f) for f in flute_offsets]
+        # Per-row values the inner loop reads, packed so that one tuple unpacking replaces
+        # four list subscripts per row and step; rebuilt when a row's flute charge changes.
+        self._row_params = [(g, ch, co, so) for g, ch, co, so in zip(
+            self.row_gain, self._charge, self._cos_off, self._sin_off, strict=True)]
+        self._flute_lo, self._flute_hi = _flute_window(flute_offsets, self._flute_index)
+        self._q_map = 0.0          # flow map value at ``_n_map`` (cache of the power law)
+        self._n_map = 0.0
 
         # State.
         self._w = 0.0              # motor speed (rad/s)
@@ -155,18 +275,23 @@ class FertilizerPlant:
         self._derated = False      # drive limited to continuous current
         self._rev = 0.0            # meter-shaft revolutions
         self._hopper_g = fert.hopper_initial_kg * 1000.0
-        self._disp = [0.0] * rows  # dispersion filter state per row (g/s)
-        self._flow_meter = [0.0] * rows
-        self._flow_sensor = [0.0] * rows
-        self._metered_sum = [0.0] * rows   # Σ flow over steps (g/s·step); x dt = grams
-        self._passed_sum = [0.0] * rows
-        self._delivered_sum = [0.0] * rows
+        # Per row: (Σ meter flow, dispersion filter output, Σ flow at the sensor, Σ flow at
+        # the exit), flows in g/s and sums over steps (x dt = grams).
+        self._row_state: list[tuple[float, float, float, float]] = [(0.0, 0.0, 0.0, 0.0)] * rows
+        self.flow_at_meter_gps: tuple[float, ...] = (0.0,) * rows
+        self.flow_at_sensor_gps: tuple[float, ...] = (0.0,) * rows
         self._steps = 0
         self._slow_countdown = 0
         self._dt: float | None = None
-        self._delay: list[list[float]] = []
-        self._write = 0
-        self._tap = 0
+        self._drive: _DriveConstants          # both set when the step size is bound
+        self._meter: _MeterConstants
+        # Transport delay line per row: the dispersion output of every step, oldest first,
+        # from index ``_line_base`` on (see :meth:`_transport`).
+        self._lines: list[list[float]] = []
+        self._line_base = 0
+        self._to_exit = 0
+        self._to_sensor = 0
+        self._alpha = 1.0
         self._update_outputs()
 
     # ------------------------------------------------------------------ helpers
@@ -184,11 +309,49 @@ class FertilizerPlant:
         tr = self.config.transport
         to_sensor = max(1, round(tr.meter_to_sensor_delay_s / dt))
         to_exit = max(1, round(tr.sensor_to_exit_delay_s / dt))
-        length = to_sensor + to_exit
-        self._delay = [[0.0] * length for _ in range(self._rows)]
-        self._write = 0
-        self._tap = to_exit % length    # reads the value written ``to_sensor`` steps ago
+        self._lines = [[0.0] * (to_sensor + to_exit) for _ in range(self._rows)]
+        self._line_base = 0
+        self._to_exit = to_exit
+        self._to_sensor = to_sensor
+        self._drive = self._drive_constants(dt)
+        self._meter = self._meter_constants(dt)
+        tau_d = tr.dispersion_time_s
+        self._alpha = 1.0 - math.exp(-dt / tau_d) if tau_d > 0.0 else 1.0
         self._dt = dt
+
+    def _drive_constants(self, dt: float) -> _DriveConstants:
+        motor = self.config.motor
+        ke, kt, ra, inv_j = self._ke, self._kt, self._ra, self._inv_j
+        kp = self._kp
+        i_cont = motor.continuous_current_a
+        t0, bl = self._load_t0, self._load_b
+        ke_ra = ke / ra
+        return _DriveConstants(
+            ke, kt, ra, inv_j, kp, self._ki * dt, motor.supply_v, motor.current_limit_a,
+            i_cont, i_cont * i_cont, self._i2t_budget,
+            motor.setpoint_ramp_rpm_per_s / RPM_PER_RAD_S * dt, bl,
+            *_implicit_step(dt, kt, -ke_ra, bl, inv_j, t0),
+            *_implicit_step(dt, kt, 0.0, bl, inv_j, t0),
+            *_implicit_step(dt, kt, -kp, bl, inv_j, t0))
+
+    def _meter_constants(self, dt: float) -> _MeterConstants:
+        meter = self.config.meter
+        fert = self.config.fertilizer
+        fm = self._flow_map
+        flutes = float(meter.flutes)
+        lsens = fert.level_sensitivity_frac
+        starve = fert.starvation_fill_frac
+        slow_steps = max(1, round(_SLOW_UPDATE_S / dt))
+        return _MeterConstants(
+            RPM_PER_RAD_S / self._ratio, dt / (2.0 * math.pi * self._ratio),
+            fm.coeff_gps, fm.exponent, fm.linear_below_rpm, fm.linear_slope_gps_per_rpm,
+            flutes, 2.0 * math.pi * flutes,
+            meter.pulsation_first_harmonic_frac, meter.pulsation_second_harmonic_frac,
+            1.0 / (fert.hopper_capacity_kg * 1000.0), lsens, starve,
+            1.0 - lsens * (1.0 - starve), 1.0 / starve if starve > 0.0 else 0.0,
+            slow_steps,
+            *ou_coefficients(slow_steps * dt, fert.density_drift_time_s,
+                             fert.density_drift_sd_frac))
 
     # ------------------------------------------------------------------ stepping
     def advance(self, n: int, dt: float) -> None:
@@ -212,76 +375,47 @@ class FertilizerPlant:
         self._bind_dt(dt)
         if n == 0:
             return
-        cfg = self.config
-        motor = cfg.motor
-        meter = cfg.meter
-        fert = cfg.fertilizer
+        motor = self.config.motor
 
         # Inputs, held for the whole call.
         v_cmd = min(max(self.command_v, 0.0), motor.command_full_scale_v)
         w_target = v_cmd * self._w_per_v if v_cmd > motor.command_deadband_v else 0.0
         stalled = bool(self.stalled)
 
-        # Drive constants.
-        ke, kt, ra, inv_j = self._ke, self._kt, self._ra, self._inv_j
-        kp, ki_dt = self._kp, self._ki * dt
-        vs = motor.supply_v
-        i_peak, i_cont = motor.current_limit_a, motor.continuous_current_a
-        i_cont2 = i_cont * i_cont
-        budget = self._i2t_budget
-        ramp = motor.setpoint_ramp_rpm_per_s / RPM_PER_RAD_S * dt
-        t0, bl = self._load_t0, self._load_b
-        ke_ra = ke / ra
-        # Meter constants.
-        shaft_rpm_per_w = RPM_PER_RAD_S / self._ratio
-        rev_per_w_step = dt / (2.0 * math.pi * self._ratio)
-        fm = self._flow_map
-        coeff, expo, knee = fm.coeff_gps, fm.exponent, fm.linear_below_rpm
-        lin_slope = fm.linear_slope_gps_per_rpm
-        flutes = float(meter.flutes)
-        two_pi_flutes = 2.0 * math.pi * flutes
-        a1 = meter.pulsation_first_harmonic_frac
-        a2 = meter.pulsation_second_harmonic_frac
-        charge_sd = meter.flute_charge_sd_frac
-        gains = self.row_gain
-        cos_off, sin_off = self._cos_off, self._sin_off
-        foff = self._flute_offsets
-        kidx, charge = self._flute_index, self._charge
+        # Constants of this step size: one tuple unpacking each (fields in declared order)
+        # instead of rebuilding them from the configuration on every call.
+        (ke, kt, ra, inv_j, kp, ki_dt, vs, i_peak, i_cont, i_cont2, budget, ramp, bl,
+         den_emf, dwf_emf, den_lim, dwf_lim, den_pi, dwf_pi) = self._drive
+        (shaft_rpm_per_w, rev_per_w_step, coeff, expo, knee, lin_slope, flutes, two_pi_flutes,
+         a1, a2, inv_cap, lsens, starve, starve_level, inv_starve, slow_steps, ou_a,
+         ou_b) = self._meter
         znext = self._z.next
-        cap_g = fert.hopper_capacity_kg * 1000.0
-        inv_cap = 1.0 / cap_g
-        lsens = fert.level_sensitivity_frac
-        starve = fert.starvation_fill_frac
-        starve_level = 1.0 - lsens * (1.0 - starve)
-        inv_starve = 1.0 / starve if starve > 0.0 else 0.0
-        slow_steps = max(1, round(_SLOW_UPDATE_S / dt))
-        ou_a, ou_b = ou_coefficients(slow_steps * dt, fert.density_drift_time_s,
-                                     fert.density_drift_sd_frac)
+        cos, sin = math.cos, math.sin
         dens_base = 1.0 + self.density_offset_frac
-        tau_d = cfg.transport.dispersion_time_s
-        alpha = 1.0 - math.exp(-dt / tau_d) if tau_d > 0.0 else 1.0
-        rows = range(self._rows)
-        delay = self._delay
-        length = len(delay[0])
-        disp = self._disp
-        flow_meter, flow_sensor = self._flow_meter, self._flow_sensor
-        metered, passed, delivered = self._metered_sum, self._passed_sum, self._delivered_sum
+        row_params = self._row_params
+        # Per-step meter flows of every row, step-major; the transport runs on them after the
+        # loop (it does not feed back into the drive or the meter).
+        flows: list[float] = []
+        put = flows.append
 
         # State to locals.
         w, w_ref, xi, cur = self._w, self._w_ref, self._xi, self._i
         i2t, derated = self._i2t, self._derated
+        i_lim = i_cont if derated else i_peak     # current limit, updated with ``derated``
         rev, hopper = self._rev, self._hopper_g
         wander = self._density_wander
+        density = dens_base + wander
         countdown = self._slow_countdown
-        wi, ti = self._write, self._tap
+        flute_lo, flute_hi = self._flute_lo, self._flute_hi
+        n_map, q_map = self._n_map, self._q_map
 
         for _ in range(n):
             # ---- slow processes
             if countdown <= 0:
                 countdown = slow_steps
                 wander = ou_a * wander + ou_b * znext()
+                density = dens_base + wander
             countdown -= 1
-            density = dens_base + wander
 
             # ---- speed reference ramp
             if w_ref < w_target:
@@ -295,48 +429,45 @@ class FertilizerPlant:
             if stalled:
                 w = 0.0
 
-            # ---- current: PI, current limit, voltage limit
-            i_lim = i_cont if derated else i_peak
+            # ---- current: PI, current limit, voltage limit. The upper limit is the lower of
+            # the current limit and what the supply can drive against the back-EMF (the
+            # lower limit likewise); each branch also picks the implicit-Euler denominator
+            # and friction impulse of its d(current)/d(speed): -Ke/Ra on the voltage limit,
+            # 0 on the current limit, -Kp in the PI range.
             err = w_ref - w
             i_cmd = kp * err + xi
-            i_hi = (vs - ke * w) / ra
-            if i_hi < i_lim:
-                d_hi = -ke_ra
-            else:
-                i_hi = i_lim
-                d_hi = 0.0
-            i_lo = (-vs - ke * w) / ra
-            if i_lo > -i_lim:
-                d_lo = -ke_ra
-            else:
-                i_lo = -i_lim
-                d_lo = 0.0
-            if i_cmd > i_hi:
-                cur = i_hi
-                di = d_hi
+            back_emf = ke * w
+            i_hi = (vs - back_emf) / ra
+            if i_cmd > i_hi or i_cmd > i_lim:
+                if i_hi < i_lim:
+                    cur, den, dwf = i_hi, den_emf, dwf_emf
+                else:
+                    cur, den, dwf = i_lim, den_lim, dwf_lim
                 if err < 0.0:
                     xi += ki_dt * err
-            elif i_cmd < i_lo:
-                cur = i_lo
-                di = d_lo
-                if err > 0.0:
-                    xi += ki_dt * err
             else:
-                cur = i_cmd
-                di = -kp
-                xi += ki_dt * err
+                # The lower limit only matters below the upper one: computed only then.
+                i_lo = (-vs - back_emf) / ra
+                if i_cmd < i_lo or i_cmd < -i_lim:
+                    if i_lo > -i_lim:
+                        cur, den, dwf = i_lo, den_emf, dwf_emf
+                    else:
+                        cur, den, dwf = -i_lim, den_lim, dwf_lim
+                    if err > 0.0:
+                        xi += ki_dt * err
+                else:
+                    cur, den, dwf = i_cmd, den_pi, dwf_pi
+                    xi += ki_dt * err
 
             # ---- mechanics: linearly implicit Euler on the smooth torques, then the
             # friction-type load (meter, chain, bearings) as a velocity impulse that can stop
             # the shaft but never reverse it (stick-slip without chatter).
             if not stalled:
-                den = 1.0 - dt * (kt * di - bl) * inv_j
                 w_free = w + dt * (kt * cur - bl * w) * inv_j / den
-                dw_friction = dt * t0 * inv_j / den
-                if w_free > dw_friction:
-                    w = w_free - dw_friction
-                elif w_free < -dw_friction:
-                    w = w_free + dw_friction
+                if w_free > dwf:
+                    w = w_free - dwf
+                elif w_free < -dwf:
+                    w = w_free + dwf
                 else:
                     w = 0.0
 
@@ -345,18 +476,24 @@ class FertilizerPlant:
             if i2t <= 0.0:
                 i2t = 0.0
                 derated = False
+                i_lim = i_peak
             elif i2t >= budget:
                 derated = True
+                i_lim = i_cont
 
             # ---- meter
             n_shaft = w * shaft_rpm_per_w
             rev += w * rev_per_w_step
-            if n_shaft >= knee:
-                q0 = coeff * n_shaft ** expo
-            elif n_shaft > 0.0:
-                q0 = lin_slope * n_shaft
-            else:
-                q0 = 0.0
+            if n_shaft != n_map:
+                # At steady speed the shaft speed repeats exactly: the power law (the
+                # costliest operation of the drive and meter) is evaluated only on change.
+                n_map = n_shaft
+                if n_shaft >= knee:
+                    q_map = coeff * n_shaft ** expo
+                elif n_shaft > 0.0:
+                    q_map = lin_slope * n_shaft
+                else:
+                    q_map = 0.0
             fill = hopper * inv_cap
             if fill >= starve:
                 level = 1.0 - lsens * (1.0 - fill)
@@ -364,40 +501,20 @@ class FertilizerPlant:
                 level = math.sqrt(fill * inv_starve) * starve_level
             else:
                 level = 0.0
-            q0 *= density * level
+            q0 = q_map * (density * level)
             fpos = flutes * rev
+            if not flute_lo < fpos < flute_hi:
+                flute_lo, flute_hi = self._next_flutes(fpos)
             theta = two_pi_flutes * rev
-            c1 = math.cos(theta)
-            s1 = math.sin(theta)
+            c1 = cos(theta)
+            s1 = sin(theta)
             q_total = 0.0
-            for r in rows:
-                k = int(fpos + foff[r])
-                if k != kidx[r]:
-                    kidx[r] = k
-                    ch = 1.0 + charge_sd * znext()
-                    charge[r] = ch if ch > 0.0 else 0.0
-                c = c1 * cos_off[r] - s1 * sin_off[r]
-                q = q0 * gains[r] * charge[r] * (1.0 + a1 * c + a2 * (2.0 * c * c - 1.0))
-                flow_meter[r] = q
-                metered[r] += q
+            for gain, charge, cos_off, sin_off in row_params:
+                c = c1 * cos_off - s1 * sin_off
+                q = q0 * gain * charge * (1.0 + a1 * c + a2 * (2.0 * c * c - 1.0))
                 q_total += q
-                y = disp[r]
-                y += alpha * (q - y)
-                disp[r] = y
-                line = delay[r]
-                q_exit = line[wi]
-                q_sens = line[ti]
-                line[wi] = y
-                flow_sensor[r] = q_sens
-                passed[r] += q_sens
-                delivered[r] += q_exit
+                put(q)
             hopper -= q_total * dt
-            wi += 1
-            if wi == length:
-                wi = 0
-            ti += 1
-            if ti == length:
-                ti = 0
 
         # State back.
         self._w, self._w_ref, self._xi, self._i = w, w_ref, xi, cur
@@ -405,9 +522,73 @@ class FertilizerPlant:
         self._rev, self._hopper_g = rev, hopper
         self._density_wander = wander
         self._slow_countdown = countdown
-        self._write, self._tap = wi, ti
+        self._flute_lo, self._flute_hi = flute_lo, flute_hi
+        self._n_map, self._q_map = n_map, q_map
+        self.flow_at_meter_gps = tuple(flows[-len(row_params):])
+        self._transport(flows, n)
         self._steps += n
         self._update_outputs()
+
+    def _next_flutes(self, fpos: float) -> tuple[float, float]:
+        """Redraw the charge of each row whose roller reached a new flute; the new window.
+
+        Called when ``fpos`` (flutes x revolutions) leaves the window in which no row can
+        change flute. Rows are checked in order, so the random draws come in the same order
+        as a per-row, per-step check would make them.
+        """
+        sd = self.config.meter.flute_charge_sd_frac
+        znext = self._z.next
+        offsets, indices, charges = self._flute_offsets, self._flute_index, self._charge
+        for r, off in enumerate(offsets):
+            k = int(fpos + off)
+            if k != indices[r]:
+                indices[r] = k
+                ch = 1.0 + sd * znext()
+                charges[r] = ch if ch > 0.0 else 0.0
+                self._row_params[r] = (self.row_gain[r], charges[r], self._cos_off[r],
+                                       self._sin_off[r])
+        return _flute_window(offsets, indices)
+
+    def _transport(self, flows: list[float], n: int) -> None:
+        """Dispersion, delay line and accumulators of every row, over a whole call.
+
+        ``flows`` holds the meter flow of every row at each of the ``n`` steps, step-major.
+        A row's transport depends neither on the other rows nor on the drive, so it runs row
+        by row with its state in locals (no list subscripts per step); every accumulation is
+        still a sequential ``+=`` per step, so the results are the same floats.
+        """
+        rows, alpha = self._rows, self._alpha
+        base, to_exit, to_sensor = self._line_base, self._to_exit, self._to_sensor
+        lines, state = self._lines, self._row_state
+        # ``line[base:]`` holds a row's line oldest first: at step j of the call, the value
+        # written ``length`` steps earlier leaves the tube (``line[base + j]``) and the one
+        # written ``to_sensor = length - to_exit`` steps earlier passes the sensor
+        # (``line[base + to_exit + j]``). Chunks of at most ``to_sensor`` steps (one chunk
+        # for the rig's 10-step calls) read only values written before the chunk.
+        for start in range(0, n, to_sensor):
+            stop = min(n, start + to_sensor)
+            exit_lo, exit_hi = base + start, base + stop
+            sens_lo, sens_hi = exit_lo + to_exit, exit_hi + to_exit
+            for r in range(rows):
+                line = lines[r]
+                put = line.append
+                m, y, p, d = state[r]
+                for q, q_exit, q_sens in zip(flows[start * rows + r:stop * rows:rows],
+                                             line[exit_lo:exit_hi], line[sens_lo:sens_hi],
+                                             strict=True):
+                    m += q
+                    y += alpha * (q - y)
+                    put(y)
+                    p += q_sens
+                    d += q_exit
+                state[r] = (m, y, p, d)
+        base += n
+        self.flow_at_sensor_gps = tuple([line[base + to_exit - 1] for line in lines])
+        if base >= _LINE_TRIM:
+            for line in lines:
+                del line[:base]
+            base = 0
+        self._line_base = base
 
     # ------------------------------------------------------------------ outputs
     def _update_outputs(self) -> None:
@@ -422,13 +603,20 @@ class FertilizerPlant:
         self.shaft_revolutions = self._rev
         self.hopper_kg = self._hopper_g / 1000.0
         self.density_factor = 1.0 + self.density_offset_frac + self._density_wander
-        self.flow_at_meter_gps = tuple(self._flow_meter)
-        self.flow_at_sensor_gps = tuple(self._flow_sensor)
-        metered = tuple(s * dt for s in self._metered_sum)
-        self.metered_g = metered
-        self.sensor_passed_g = tuple(s * dt for s in self._passed_sum)
-        self.delivered_g = tuple(s * dt for s in self._delivered_sum)
-        self.in_transit_g = tuple(m - d for m, d in zip(metered, self.delivered_g, strict=True))
+        state = self._row_state
+        self.sensor_passed_g = tuple([row[2] * dt for row in state])
+        self.delivered_g = tuple([row[3] * dt for row in state])
+
+    @property
+    def metered_g(self) -> tuple[float, ...]:
+        """Per row: grams that have left the roller (computed on access: rarely read)."""
+        dt = self._dt or 0.0
+        return tuple([row[0] * dt for row in self._row_state])
+
+    @property
+    def in_transit_g(self) -> tuple[float, ...]:
+        """Per row: grams metered but not yet delivered (computed on access)."""
+        return tuple([m - d for m, d in zip(self.metered_g, self.delivered_g, strict=True)])
 
     @property
     def flow_map(self) -> FlowMap:

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from plant_emulators.fertilizer import paper_data as paper
-from plant_emulators.fertilizer.flow_sensor import FlowSensor, SensorStatus
+from plant_emulators.fertilizer.flow_sensor import FlowSensor, SensorStatus, _crossing
 from plant_emulators.fertilizer.physics import FertilizerPlant
 
 DT = 0.001
@@ -222,3 +222,19 @@ def test_sensor_step_rules(rig_config):
         sensor.advance(1, 0.002, 0.0)
     with pytest.raises(ValueError, match="mode"):
         FlowSensor(rig_config.flow_sensor, np.random.default_rng(13), mode="rolling")
+
+
+def test_scheduled_window_end_is_where_the_per_step_clock_would_cross():
+    """``_crossing`` replaces a per-step ``t += step; t >= due`` test: same floats, same step."""
+    rng = np.random.default_rng(17)
+    for _ in range(300):
+        step = float(rng.uniform(1e-4, 1.1e-2)) * (1.0 + float(rng.normal(0.0, 3e-5)))
+        due = float(rng.uniform(0.0, 1.2))
+        t0 = float(rng.uniform(-step, step))
+        t, k = t0, 0
+        while True:
+            t += step
+            k += 1
+            if t >= due:
+                break
+        assert _crossing(t0, step, due) == (k, t)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from plant_emulators.fertilizer import paper_data as paper
-from plant_emulators.fertilizer.physics import MAX_STEP_S, FertilizerPlant
+from plant_emulators.fertilizer.physics import MAX_STEP_S, FertilizerPlant, _flute_window
 
 DT = 0.001
 """Physics step (s): the rig's 1 kHz."""
@@ -249,3 +249,31 @@ def test_step_size_rules(rig_config):
         plant.advance(1, DT / 2)
     with pytest.raises(ValueError, match="n must be"):
         plant.advance(-1, DT)
+
+
+@pytest.mark.parametrize("index_range", [(0, 3), (-4, 0), (1, 10**6)])
+def test_flute_window_only_holds_positions_where_no_row_changes_flute(index_range):
+    """Inside ``_flute_window`` every row's ``int(fpos + offset)`` is its current flute, so
+    the plant may skip the per-row check there (and checks exactly outside it)."""
+    rng = np.random.default_rng(11)
+    for _ in range(200):
+        offsets = rng.uniform(0.0, 1.0, 4).tolist()
+        fpos0 = float(rng.uniform(*index_range))
+        indices = [int(fpos0 + off) for off in offsets]
+        lo, hi = _flute_window(offsets, indices)
+        near_a_flute_edge = any(abs(fpos0 + off - round(fpos0 + off)) < 1e-9 for off in offsets)
+        assert near_a_flute_edge or lo < fpos0 < hi
+        probes = [*np.linspace(lo, hi, 101)[1:-1].tolist(),
+                  math.nextafter(lo, math.inf), math.nextafter(hi, -math.inf)]
+        for fpos in probes:
+            if lo < fpos < hi:
+                assert [int(fpos + off) for off in offsets] == indices
+
+
+def test_metered_and_in_transit_are_consistent_with_delivered(rig_config):
+    plant = FertilizerPlant(rig_config, np.random.default_rng(2))
+    plant.command_v = 4.0
+    plant.advance(3000, DT)
+    for m, d, t in zip(plant.metered_g, plant.delivered_g, plant.in_transit_g, strict=True):
+        assert t == m - d
+        assert 0.0 < d < m
