@@ -13,7 +13,7 @@ from hil.rig import RunOptions, load_rig, run_scenario
 CASES = [("fertilizer", "field-6kmh", "pi"), ("sowing_depth", "depth-step", "pi")]
 
 
-@pytest.mark.parametrize("bus", ["virtual", "softbus"])
+@pytest.mark.parametrize("bus", ["inline", "virtual", "softbus"])
 @pytest.mark.parametrize(("rig_name", "scenario_name", "controller"), CASES)
 def test_lockstep_realtime_factor(benchmark, rig_name: str, scenario_name: str,
                                   controller: str, bus: str) -> None:

@@ -14,6 +14,7 @@ from typing import Any
 import can
 
 from hil.bus import open_bus
+from hil.bus.inline import InlineBus
 from hil.dut.base import DutError, DutRunner
 
 
@@ -45,6 +46,26 @@ class InProcessDut(DutRunner):
         self._failure: BaseException | None = None
         self.frames_in = 0
         self.frames_out = 0
+        self._inline = False
+
+    def attach_inline(self, env: dict[str, str] | None = None) -> InlineBus:
+        """Run without a thread: the rig's bus calls the controller directly (lockstep)."""
+        self.controller.configure(env or {})
+        bus = InlineBus(self._inline_frame)
+        bus.inject(self.controller.on_start())
+        self._inline = True
+        return bus
+
+    def _inline_frame(self, msg: can.Message) -> list[can.Message]:
+        self.frames_in += 1
+        try:
+            out = self.controller.on_frame(msg)
+        except Exception as exc:
+            self._failure = exc
+            raise DutError(f"in-process controller {self.name!r} died: "
+                           f"{type(exc).__name__}: {exc}") from exc
+        self.frames_out += len(out)
+        return out
 
     def start(self, bus_spec: str, env: dict[str, str] | None = None) -> None:
         self.controller.configure(env or {})
@@ -83,6 +104,7 @@ class InProcessDut(DutRunner):
         if self._bus is not None:
             self._bus.shutdown()
             self._bus = None
-        return {"name": self.name, "kind": "in-process", "frames_in": self.frames_in,
+        kind = "in-process inline" if self._inline else "in-process"
+        return {"name": self.name, "kind": kind, "frames_in": self.frames_in,
                 "frames_out": self.frames_out, "hung": alive,
                 "failure": None if self._failure is None else repr(self._failure)}

@@ -26,7 +26,8 @@ import numpy as np
 from hil.bus import open_bus
 from hil.clock import SyncBarrier, make_clock
 from hil.dut.base import DutError, DutRunner
-from hil.errors import BusError, StepTimeoutError
+from hil.dut.inprocess import InProcessDut
+from hil.errors import BusError, ConfigError, StepTimeoutError
 from hil.record import Recorder, Verdict
 from hil.rig.base import Rig, RigContext
 from hil.rig.scenario import Scenario
@@ -222,9 +223,11 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
             stack.callback(lambda: rec.meta.__setitem__("softbus", softbus.stats()))
         elif spec == "virtual":
             spec = f"virtual:agrihil-{run_id}"
+        elif spec == "inline" and (options.clock != "lockstep"
+                                   or not isinstance(dut, InProcessDut)):
+            raise ConfigError("the inline bus needs the lockstep clock and an in-process "
+                                  "controller", key="bus")
         rec.meta["bus"] = spec
-        bus = open_bus(spec)
-        stack.callback(bus.shutdown)
         ctx = RigContext(seed=seed, rng=np.random.default_rng(seed),
                          note=lambda t, kind, detail: notes.append(
                              {"t": round(t, 6), "kind": kind, "detail": detail}))
@@ -232,7 +235,13 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
         stack.callback(rig.close)
         dut_env = rig.dut_environment()
         rec.meta["dut_environment"] = dut_env
-        dut.start(spec, dut_env)
+        if spec == "inline":
+            assert isinstance(dut, InProcessDut)
+            bus: can.BusABC = dut.attach_inline(dut_env)
+        else:
+            bus = open_bus(spec)
+            dut.start(spec, dut_env)
+        stack.callback(bus.shutdown)
         stack.callback(lambda: rec.meta.__setitem__("dut", dut.stop()))
         loop = _Loop(rig, scenario, bus, rec, options.clock, options)
         try:

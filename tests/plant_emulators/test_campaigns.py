@@ -15,6 +15,7 @@ from plant_emulators.fertilizer.controllers import PiFlowController
 from plant_emulators.fertilizer.rig import FertilizerRig
 from plant_emulators.sowing_depth.controllers import PiDepthController
 from plant_emulators.sowing_depth.rig import SowingDepthRig
+from plant_emulators.sowing_depth.sampling import paper_sample
 
 pytestmark = pytest.mark.slow
 
@@ -52,3 +53,7 @@ def test_sowing_depth_field_run(tmp_path: Path, band: str) -> None:
     assert depth.mean() == pytest.approx(30.0, abs=2.5)
     assert 85.0 < pass_rate < 97.0
     assert 2.0 < cv < 5.0
+    sampled = paper_sample(x, truth["depth_mm"], np.random.default_rng(0))   # 3 rows x 40
+    sampled_pass = 100.0 * (np.abs(sampled - 30.0) <= 10.0).mean()
+    print(f"  sampled as [D] (3 x 40): mean {sampled.mean():.2f} mm, pass {sampled_pass:.1f} %")
+    assert sampled.shape == (3, 40) and 80.0 <= sampled_pass <= 100.0

@@ -106,3 +106,22 @@ def test_realtime_run_records_timing_health(tmp_path: Path) -> None:
     assert result.wall_s >= 1.0
     arrays, _ = load_traces(tmp_path / "traces.npz")
     assert arrays["level"][-1] > 0.5   # the controller really acted in real time
+
+
+def test_inline_bus_gives_the_same_traces_without_threads(tmp_path: Path) -> None:
+    v = load_traces(_run(tmp_path / "v").out_dir / "traces.npz")[0]
+    i = load_traces(_run(tmp_path / "i", bus="inline").out_dir / "traces.npz")[0]
+    for name in v:
+        np.testing.assert_array_equal(v[name], i[name])
+    frames = list(can.LogReader(tmp_path / "i" / "bus.log"))
+    assert sum(m.arbitration_id == 0x201 and m.is_rx for m in frames) == 51
+
+
+def test_inline_bus_reports_a_silent_controller(tmp_path: Path) -> None:
+    result = _run(tmp_path, bus="inline", controller=ToyController(die_after_syncs=20))
+    assert result.record["verdict"] == "error" and "did not answer SYNC" in result.record["error"]
+
+
+def test_inline_bus_needs_lockstep(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="inline bus needs the lockstep clock"):
+        _run(tmp_path, bus="inline", clock="realtime")
