@@ -17,6 +17,7 @@ def add_bus_clock(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--bus", default="softbus",
                         help="bus spec: 'softbus' (start an embedded software bus, the default), "
                              "'virtual', 'socketcan:vcan0', 'socketcand:HOST:PORT/CH', "
-                             "'<python-can interface>:<channel>,key=value'")
+                             "'<python-can interface>:<channel>,key=value', or 'inline' "
+                             "(lockstep with an in-process controller: no threads, fastest)")
     parser.add_argument("--clock", choices=["lockstep", "realtime"], default="lockstep",
                         help="lockstep (virtual time, fast, deterministic) or realtime")

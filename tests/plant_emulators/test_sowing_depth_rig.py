@@ -175,3 +175,20 @@ def test_canopen_cia402_master_drives_the_emulated_cylinder_over_the_bus(tmp_pat
         finally:
             runner.join(15)
             network.disconnect()
+
+
+def test_packaged_overcurrent_fault_trips_and_recovers(tmp_path: Path) -> None:
+    _run(tmp_path, SowingDepthRig.load_scenario("fault-drive-overcurrent"))
+    tr = load_traces(tmp_path / "traces.npz")[0]
+    t = tr["time_s"]
+    assert (tr["drive_error_code"][(t > 20) & (t < 25)] == 0x2310).any()
+    assert int(tr["drive_statusword"][-1]) & 0x6F == 0x27     # reset once the cause cleared
+
+
+def test_packaged_stuck_inclinometer_freezes_the_sensed_depth(tmp_path: Path) -> None:
+    _run(tmp_path, SowingDepthRig.load_scenario("fault-inclinometer-stuck"))
+    tr = load_traces(tmp_path / "traces.npz")[0]
+    t = tr["time_s"]
+    assert np.ptp(tr["sensed_depth_mm"][t > 20.05]) == 0.0
+    assert np.ptp(tr["sensed_depth_mm"][(t > 10) & (t < 20)]) > 1.0
+    assert np.ptp(tr["mean_true_depth_mm"][t > 20.05]) > 1.0   # the truth keeps moving
