@@ -38,7 +38,6 @@ class SyncBarrier:
         self.await_any = await_any
         self.counter = 0
         self.syncs_sent = 0
-        self.wait_s_total = 0.0
 
     def due(self, tick: int) -> bool:
         return tick % self.period_ticks == 0
@@ -82,4 +81,3 @@ class SyncBarrier:
                 if self.await_any:
                     break
                 pending.discard(msg.arbitration_id)
-        self.wait_s_total += time.monotonic() - start

@@ -86,6 +86,8 @@ class Recorder:
         self._bus_log_formats = bus_log_formats
         self.bus_log: BusLog | None = None
         self._closed = False
+        #: the record as written to record.json (set by :meth:`close`)
+        self.final_record: dict[str, Any] = {}
 
     def __enter__(self) -> Recorder:
         self.bus_log = BusLog(self.out_dir, formats=self._bus_log_formats)
@@ -136,7 +138,7 @@ class Recorder:
     def close(self) -> dict[str, Any]:
         """Write everything; safe to call more than once."""
         if self._closed:
-            return self.record()
+            return self.final_record
         self._closed = True
         problems = []
         if self.bus_log is not None:
@@ -154,4 +156,5 @@ class Recorder:
         if problems:
             record["recorder_problems"] = problems
         (self.out_dir / "record.json").write_text(json.dumps(record, indent=2, default=str))
+        self.final_record = record
         return record

@@ -42,7 +42,6 @@ class RunOptions:
     seed: int | None = None
     step_timeout_s: float = 2.0
     csv: bool = False
-    dut_heartbeat_timeout_s: float = 3.0
     extra_meta: dict[str, Any] = field(default_factory=dict)
 
 
@@ -76,7 +75,6 @@ class _Loop:
         self.dt = rig.physics_period_s
         self.frames_tx = 0
         self.frames_rx = 0
-        self.claimed: dict[int, Any] = {}
         self.barrier = SyncBarrier(bus, period_ticks=max(1, round(rig.control_period_s / self.dt)),
                                    await_ids=rig.command_ids(), dispatch=self.intake,
                                    timeout_s=options.step_timeout_s,
@@ -264,5 +262,5 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
             rec.meta["wall_s"] = time.perf_counter() - wall0
             rec.meta["sim_s"] = sim_s
     wall = time.perf_counter() - wall0
-    record = rec.record()
+    record = rec.final_record
     return RunResult(record=record, out_dir=options.out_dir, wall_s=wall, sim_s=sim_s)

@@ -26,8 +26,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -92,12 +91,6 @@ class BusStats:
     protocol_errors: int = 0
     clients_seen: int = 0
     busy_s: float = 0.0
-    faults: Counter[str] = field(default_factory=Counter)
-
-    def as_dict(self) -> dict[str, Any]:
-        out = dict(self.__dict__)
-        out["faults"] = dict(self.faults)
-        return out
 
 
 class _Client(asyncio.Protocol):
@@ -231,7 +224,6 @@ class _Server:
         self._wall0 = time.time()
         self._log_path = log_path
         self._logger: can.Listener | None = None
-        self._loop: asyncio.AbstractEventLoop | None = None
 
     def open_log(self) -> None:
         if self._log_path is not None:
@@ -290,8 +282,6 @@ class _Server:
     def _transmit(self, sender: _Client | None, frame: Frame, channel: str, mono: float) -> None:
         if self.faults:
             verdict = self.faults.apply(frame.can_id, frame.data)
-            for kind, n in self.faults.injected.items():
-                self.stats.faults[kind] = n
             if verdict.error_frame:
                 self._broadcast(None, Frame(_ERROR_CLASS_CONTROLLER, b"", True, error=True),
                                 channel, mono)
@@ -322,6 +312,13 @@ class _Server:
                 timestamp=stamp, arbitration_id=frame.can_id, data=frame.data,
                 is_extended_id=frame.extended, is_error_frame=frame.error, channel=channel))
 
+    def stats_dict(self) -> dict[str, Any]:
+        """Counters of the bus, per client, and of injected faults."""
+        return {**asdict(self.stats), "faults": dict(self.faults.injected),
+                "clients": {c.name: asdict(c.stats) for cs in self.channels.values()
+                            for c in cs},
+                "bitrate": self.bitrate}
+
     # control commands ----------------------------------------------------------------
     def command(self, words: list[str]) -> str:
         try:
@@ -347,11 +344,7 @@ class _Server:
                             channel)
             return "< hil ok >"
         if words[:1] == ["stats"]:
-            stats = self.stats.as_dict()
-            stats["clients"] = {c.name: c.stats.__dict__
-                                for cs in self.channels.values() for c in cs}
-            stats["bitrate"] = self.bitrate
-            return f"< hil stats {json.dumps(stats)} >"
+            return f"< hil stats {json.dumps(self.stats_dict())} >"
         raise ValueError(f"unknown hil command {' '.join(words)!r}; known: fault add|clear|list, "
                          "errors N, stats")
 
@@ -477,7 +470,7 @@ class SoftwareBus:
         self.call(lambda s: s.command(["errors", str(count), channel]))
 
     def stats(self) -> dict[str, Any]:
-        return json.loads(self.call(lambda s: s.command(["stats"]))[len("< hil stats "):-2])
+        return dict(self.call(lambda s: s.stats_dict()))
 
 
 class SoftwareBusProcess:
