@@ -22,7 +22,8 @@ EXIT_FAIL = 1
 EXIT_SETUP = 2
 
 #: Subcommand modules, imported in order; each provides ``add_subparser(subparsers)``.
-SUBCOMMANDS = ("hil.cli.bus", "hil.cli.run", "hil.cli.qualify")
+SUBCOMMANDS = ("hil.cli.bus", "hil.cli.run", "hil.cli.profile", "hil.cli.qualify",
+               "hil.cli.gate", "hil.cli.report")
 
 
 class Terminated(KeyboardInterrupt):

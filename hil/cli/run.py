@@ -2,6 +2,10 @@
 
     hil run --rig fertilizer --list-scenarios
     hil run --rig fertilizer --dut builtin:pi --scenario bench-step --out runs/step --plot
+    hil run --dut dut_profiles/fertilizer-piecewise-pid-daemon.toml --scenario field-6kmh
+
+With a DUT profile the rig comes from the profile (``--rig`` may be left out) and the DUT is
+built (firmware, cached), started, watched and stopped as the profile says.
 """
 
 from __future__ import annotations
@@ -11,17 +15,21 @@ import sys
 from pathlib import Path
 
 from hil.cli.args import add_bus_clock
+from hil.dut import DutRunner, InProcessDut
+from hil.dut.factory import make_dut
+from hil.dut.profile import load_profile
 from hil.errors import ConfigError
-from hil.rig import RunOptions, available_rigs, load_rig, run_scenario
+from hil.rig import Rig, RunOptions, available_rigs, load_rig, run_scenario
 
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     run = subparsers.add_parser("run", help="run one scenario of a rig against a DUT")
-    run.add_argument("--rig", required=True, help=f"rig name ({', '.join(available_rigs())})")
+    run.add_argument("--rig", help=f"rig name ({', '.join(available_rigs())}); "
+                                   "taken from the profile when --dut is one")
     run.add_argument("--list-scenarios", action="store_true",
                      help="print the rig's scenarios, one per line, and exit")
-    run.add_argument("--dut", help="the controller under test: builtin:NAME (a minimal "
-                                   "controller the rig ships)")
+    run.add_argument("--dut", help="the controller under test: a DUT profile (TOML) or "
+                                   "builtin:NAME (a minimal controller the rig ships)")
     run.add_argument("--scenario", help="scenario name (see --list-scenarios) or a TOML file")
     add_bus_clock(run)
     run.add_argument("--out", default=None, help="output directory (default runs/<scenario>)")
@@ -33,22 +41,32 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
     run.set_defaults(func=_run)
 
 
-def _dut_runner(rig_cls: type, dut: str):  # type: ignore[no-untyped-def]
-    from hil.dut import InProcessDut
-
+def _builtin_dut(rig_cls: type[Rig], dut: str) -> InProcessDut:
     kind, _, name = dut.partition(":")
     builtins = rig_cls.builtin_controllers()
     if kind == "builtin" and name in builtins:
-        return InProcessDut(builtins[name]())
+        return InProcessDut(builtins[name]())  # type: ignore[arg-type]
     if kind == "builtin":
         raise ConfigError(f"rig {rig_cls.name} has no built-in controller {name!r}; available: "
                           f"{', '.join('builtin:' + n for n in builtins)}", key="dut")
-    raise ConfigError(f"unsupported DUT {dut!r}: use builtin:NAME "
+    raise ConfigError(f"unsupported DUT {dut!r}: give a DUT profile (.toml) or builtin:NAME "
                       f"({', '.join('builtin:' + n for n in builtins)})", key="dut")
 
 
+def _is_profile(dut: str | None) -> bool:
+    return bool(dut) and not str(dut).startswith("builtin:")
+
+
 def _run(args: argparse.Namespace) -> int:
-    rig_cls = load_rig(args.rig)
+    profile = load_profile(args.dut) if _is_profile(args.dut) else None
+    rig_name = args.rig or (profile.dut.rig if profile else None)
+    if rig_name is None:
+        print("hil: error: --rig is needed (or a DUT profile as --dut)", file=sys.stderr)
+        return 2
+    if profile is not None and args.rig and load_rig(args.rig) is not load_rig(profile.dut.rig):
+        raise ConfigError(f"--rig {args.rig} but the profile is wired to {profile.dut.rig}",
+                          path=str(profile.path), key="dut.rig")
+    rig_cls = load_rig(rig_name)
     if args.list_scenarios:
         for name, description in rig_cls.scenario_names():
             print(f"{name}  {description}")
@@ -58,13 +76,20 @@ def _run(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 2
     scenario = rig_cls.load_scenario(args.scenario)
-    dut = _dut_runner(rig_cls, args.dut)
     out = Path(args.out or f"runs/{scenario.name}")
+    extra: dict[str, object] = {}
+    dut: DutRunner
+    if profile is not None:
+        dut, build = make_dut(profile, bus=args.bus, clock=args.clock, log_dir=out)
+        extra = {"dut_identity": profile.identity(), "dut_build": build}
+    else:
+        dut = _builtin_dut(rig_cls, args.dut)
     print(f"hil: running {rig_cls.name}/{scenario.name} ({scenario.duration_s:g} s, "
           f"{args.clock}) against {args.dut} on {args.bus}", file=sys.stderr)
     result = run_scenario(rig_cls, scenario, dut,
                           RunOptions(out_dir=out, clock=args.clock, bus=args.bus, seed=args.seed,
-                                     csv=args.csv, step_timeout_s=args.step_timeout))
+                                     csv=args.csv, step_timeout_s=args.step_timeout,
+                                     extra_meta=extra))
     if args.plot:
         from hil.plot import plot_traces
         from hil.record import load_traces

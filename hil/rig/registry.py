@@ -21,6 +21,8 @@ def available_rigs() -> list[str]:
 
 
 def load_rig(name: str) -> type[Rig]:
+    """The rig class called ``name`` (``sowing-depth`` and ``sowing_depth`` are one rig)."""
+    name = name.replace("-", "_")
     target = RIGS.get(name)
     if target is None:
         eps = {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}

@@ -1,0 +1,16 @@
+"""``hil gate``: placeholder until its module lands (being written now)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    sub = subparsers.add_parser("gate", help="(not built yet)")
+    sub.set_defaults(func=_run)
+
+
+def _run(args: argparse.Namespace) -> int:
+    print("hil: 'gate' is not built yet", file=sys.stderr)
+    return 2

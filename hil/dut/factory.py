@@ -1,0 +1,61 @@
+"""From a DUT profile to the runner that runs it for one scenario."""
+
+from __future__ import annotations
+
+import importlib
+from pathlib import Path
+from typing import Any
+
+from hil.dut.base import DutRunner
+from hil.dut.build import ensure_built
+from hil.dut.inprocess import Controller, InProcessDut
+from hil.dut.physical import PhysicalDut
+from hil.dut.process import ProcessDut
+from hil.dut.profile import DutProfile
+from hil.errors import ConfigError
+
+
+def load_controller(profile: DutProfile) -> Controller:
+    """Instantiate ``launch.inprocess`` ("module:Class") with the profile's parameters."""
+    target = profile.launch.inprocess
+    module_name, _, attr = target.partition(":")
+    where = {"path": str(profile.path), "key": "launch.inprocess"}
+    try:
+        cls = getattr(importlib.import_module(module_name), attr)
+    except (ImportError, AttributeError) as exc:
+        raise ConfigError(f"cannot load {target!r}: {exc}", **where) from exc
+    try:
+        controller = cls(**dict(profile.parameters))
+    except TypeError as exc:
+        raise ConfigError(f"{target} rejects the parameters: {exc}", path=str(profile.path),
+                          key="parameters") from exc
+    except ValueError as exc:
+        raise ConfigError(str(exc), path=str(profile.path), key="parameters") from exc
+    if not isinstance(controller, Controller):
+        raise ConfigError(f"{target} is not a hil.dut.Controller", **where)
+    return controller
+
+
+def runs_inprocess(profile: DutProfile, bus: str) -> bool:
+    """In-process DUTs always; daemons with an in-process twin on the inline bus (lockstep)."""
+    kind = profile.dut.kind
+    return kind == "inprocess" or (bus == "inline" and bool(profile.launch.inprocess)
+                                   and kind == "daemon")
+
+
+def make_dut(profile: DutProfile, *, bus: str, clock: str,
+             log_dir: Path | None = None) -> tuple[DutRunner, dict[str, Any]]:
+    """The runner for ``profile`` on ``bus``/``clock``, and build facts for the record."""
+    if runs_inprocess(profile, bus):
+        dut = InProcessDut(load_controller(profile))
+        dut.name = profile.name
+        return dut, {}
+    if bus == "inline":
+        raise ConfigError(f"the inline bus runs in-process controllers only; "
+                          f"{profile.name} is a {profile.dut.kind} DUT: use --bus softbus",
+                          key="bus")
+    if profile.dut.kind == "physical":
+        return PhysicalDut(profile), {}
+    build = ensure_built(profile)
+    build_path = Path(str(build["build_dir"])) if build else None
+    return ProcessDut(profile, clock=clock, log_dir=log_dir, build=build_path), build

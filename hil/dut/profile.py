@@ -1,0 +1,228 @@
+"""DUT profiles: one TOML file per controller under test, validated into frozen dataclasses.
+
+A profile says who the DUT is, how to build it, how to start it, how it is wired, its timing,
+its parameters and the limits it must meet. Every error names the file and the key; an invalid
+profile never starts a run. Layout (``dut_profiles/<rig>-<controller>-<kind>.toml``)::
+
+    [dut]         name, version, build_id, kind (firmware|daemon|inprocess|physical), rig,
+                  controller, description
+    [build]       firmware only: command (argv), sources (paths hashed into the cache key),
+                  artifacts (paths the build must produce)
+    [launch]      command (argv) for a process DUT, lockstep_args / realtime_args, env,
+                  inprocess ("module:Class", used in lockstep on the inline bus), ready,
+                  ready_timeout_s, stop_timeout_s
+    [wiring]      node_id, heartbeat_id, command_ids, database
+    [timing]      control_period_ms, heartbeat_period_ms, max_frames_per_period
+    [parameters]  name = number | string | bool, handed to the controller
+    [limits]      "measurement.name" = { low = …, high = … }
+
+In ``launch.command`` and ``build.command`` these placeholders are expanded: ``{python}``
+(this interpreter), ``{root}`` (the project root), ``{profile_dir}``, ``{build_dir}`` (the
+build cache entry of this profile), ``{bus}`` (the bus spec), ``{params}`` (one
+``--param key=value`` per parameter, as separate arguments).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+from hil.config import check_positive, from_mapping
+from hil.errors import ConfigError
+from hil.limits import known_measurement, measurement_names
+
+Kind = Literal["firmware", "daemon", "inprocess", "physical"]
+PROFILE_NAME = re.compile(r"^[a-z0-9]+(-[a-z0-9]+)*$")
+PLACEHOLDERS = ("python", "root", "profile_dir", "build_dir", "bus", "params")
+
+
+@dataclass(frozen=True)
+class Identity:
+    name: str
+    version: str
+    kind: Kind
+    rig: str
+    controller: str
+    build_id: str = ""
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        if not PROFILE_NAME.match(self.name):
+            raise ValueError(f"name must be lower-case words joined by '-', got {self.name!r}")
+
+
+@dataclass(frozen=True)
+class Build:
+    command: tuple[str, ...]
+    sources: tuple[str, ...] = ()
+    artifacts: tuple[str, ...] = ()
+    timeout_s: float = 600.0
+
+    def __post_init__(self) -> None:
+        if not self.command:
+            raise ValueError("command must not be empty")
+        check_positive(self, "timeout_s")
+
+
+@dataclass(frozen=True)
+class Launch:
+    command: tuple[str, ...] = ()
+    lockstep_args: tuple[str, ...] = ()
+    realtime_args: tuple[str, ...] = ()
+    env: dict[str, str] = field(default_factory=dict)
+    #: "module:Class" of the same controller as an in-process object (lockstep, inline bus)
+    inprocess: str = ""
+    #: how the rig knows the DUT is on the bus: its CANopen boot-up frame, a line on its
+    #: stdout ("stdout:<text>"), or a fixed delay ("delay")
+    ready: str = "bootup"
+    ready_timeout_s: float = 10.0
+    ready_delay_s: float = 0.5
+    stop_timeout_s: float = 3.0
+
+    def __post_init__(self) -> None:
+        check_positive(self, "ready_timeout_s", "stop_timeout_s")
+        if not (self.ready in ("bootup", "delay") or self.ready.startswith("stdout:")):
+            raise ValueError(f"ready must be 'bootup', 'delay' or 'stdout:<text>', "
+                             f"got {self.ready!r}")
+        for arg in (*self.command, *self.lockstep_args, *self.realtime_args):
+            for name in re.findall(r"{(\w+)}", arg):
+                if name not in PLACEHOLDERS:
+                    raise ValueError(f"unknown placeholder {{{name}}} in {arg!r} "
+                                     f"(known: {', '.join(PLACEHOLDERS)})")
+        if self.inprocess and not re.match(r"^[\w.]+:\w+$", self.inprocess):
+            raise ValueError(f"inprocess must be 'module:Class', got {self.inprocess!r}")
+
+
+@dataclass(frozen=True)
+class Wiring:
+    node_id: int
+    #: frames the rig waits for after each SYNC in lockstep (empty: the rig's own choice)
+    command_ids: tuple[int, ...] = ()
+    database: str = ""
+
+    def __post_init__(self) -> None:
+        if not 1 <= self.node_id <= 127:
+            raise ValueError(f"node_id must be a CANopen node id 1-127, got {self.node_id}")
+        for can_id in self.command_ids:
+            if not 0 <= can_id <= 0x1FFFFFFF:
+                raise ValueError(f"command id 0x{can_id:X} is not a CAN identifier")
+
+    @property
+    def heartbeat_id(self) -> int:
+        return 0x700 + self.node_id
+
+
+@dataclass(frozen=True)
+class Timing:
+    control_period_ms: float
+    heartbeat_period_ms: float = 100.0
+    #: more frames than this from the DUT in one control period is a flood (a fault)
+    max_frames_per_period: int = 50
+
+    def __post_init__(self) -> None:
+        check_positive(self, "control_period_ms", "heartbeat_period_ms",
+                       "max_frames_per_period")
+
+
+@dataclass(frozen=True)
+class Limit:
+    low: float | None = None
+    high: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.low is None and self.high is None:
+            raise ValueError("a limit needs low, high or both")
+        if self.low is not None and self.high is not None and self.low > self.high:
+            raise ValueError(f"low {self.low} is above high {self.high}")
+
+
+@dataclass(frozen=True)
+class DutProfile:
+    dut: Identity
+    wiring: Wiring
+    timing: Timing
+    launch: Launch = field(default_factory=Launch)
+    build: Build | None = None
+    parameters: dict[str, float | int | bool | str] = field(default_factory=dict)
+    limits: dict[str, Limit] = field(default_factory=dict)
+    #: set by :func:`load_profile`
+    path: Path | None = None
+    sha256: str = ""
+
+    @property
+    def name(self) -> str:
+        return self.dut.name
+
+    def limit(self, measurement: str) -> Limit | None:
+        return self.limits.get(measurement)
+
+    def identity(self) -> dict[str, str]:
+        return {"name": self.dut.name, "version": self.dut.version,
+                "build_id": self.dut.build_id, "kind": self.dut.kind, "rig": self.dut.rig,
+                "controller": self.dut.controller,
+                "profile": str(self.path) if self.path else "", "profile_sha256": self.sha256}
+
+
+def load_profile(path: str | Path) -> DutProfile:
+    """Read and validate a DUT profile; raises :class:`ConfigError` naming file and key."""
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError as exc:
+        raise ConfigError("DUT profile not found", path=str(path)) from exc
+    except OSError as exc:
+        raise ConfigError(f"cannot read DUT profile: {exc}", path=str(path)) from exc
+    try:
+        data = tomllib.loads(raw.decode("utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"not valid TOML: {exc}", path=str(path)) from exc
+    for reserved in ("path", "sha256"):
+        if reserved in data:
+            raise ConfigError("unknown key", path=str(path), key=reserved)
+    profile = from_mapping(DutProfile, data, path=str(path))
+    _check(profile, str(path))
+    return DutProfile(dut=profile.dut, wiring=profile.wiring, timing=profile.timing,
+                      launch=profile.launch, build=profile.build,
+                      parameters=profile.parameters, limits=profile.limits, path=path,
+                      sha256=hashlib.sha256(raw).hexdigest())
+
+
+def _check(profile: DutProfile, path: str) -> None:
+    """Checks across sections: what each kind needs, rig exists, limit names known."""
+    from hil.rig.registry import available_rigs
+
+    ident = profile.dut
+    rig = ident.rig.replace("-", "_")
+    if rig not in available_rigs():
+        raise ConfigError(f"unknown rig {ident.rig!r} (available: "
+                          f"{', '.join(available_rigs())})", path=path, key="dut.rig")
+    stem = Path(path).stem
+    if stem != ident.name:
+        raise ConfigError(f"name {ident.name!r} differs from the file name {stem!r}",
+                          path=path, key="dut.name")
+    launch = profile.launch
+    if ident.kind in ("firmware", "daemon") and not launch.command:
+        raise ConfigError(f"a {ident.kind} DUT needs a launch command", path=path,
+                          key="launch.command")
+    if ident.kind == "firmware" and profile.build is None:
+        raise ConfigError("a firmware DUT needs a [build] section", path=path, key="build")
+    if ident.kind == "inprocess" and not launch.inprocess:
+        raise ConfigError("an inprocess DUT needs launch.inprocess = 'module:Class'",
+                          path=path, key="launch.inprocess")
+    if ident.kind == "physical" and (launch.command or profile.build):
+        raise ConfigError("a physical DUT is not started by the rig: remove launch.command "
+                          "and [build]", path=path, key="launch.command")
+    for name, value in profile.parameters.items():
+        if not re.match(r"^[a-z][a-z0-9_]*$", name):
+            raise ConfigError(f"parameter names are lower_snake_case, got {name!r}",
+                              path=path, key=f"parameters.{name}")
+        del value
+    for name in profile.limits:
+        if not known_measurement(name, rig):
+            raise ConfigError(
+                f"unknown measurement (the {rig} suites measure: "
+                f"{', '.join(measurement_names(rig))})", path=path, key=f"limits.{name}")

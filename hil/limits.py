@@ -1,0 +1,90 @@
+"""The catalogue of measurements the standard suites record, per rig.
+
+DUT profiles set limits by these names; a name not listed here is a typo in a profile (or a
+suite that forgot to register its measurement), and both are errors.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class MeasurementSpec:
+    name: str
+    unit: str
+    rig: str
+    description: str
+
+
+_SPECS = (
+    # fertilizer flow rig, [F]
+    MeasurementSpec("flow.step.response_time", "s", "fertilizer",
+                    "time from the setpoint step until the true flow enters and stays in "
+                    "the +/-5 % band"),
+    MeasurementSpec("flow.step.sensed_response_time", "s", "fertilizer",
+                    "as flow.step.response_time, on the flow the sensors report"),
+    MeasurementSpec("flow.step.overshoot", "%", "fertilizer",
+                    "peak of the true flow beyond the target, % of the step"),
+    MeasurementSpec("flow.step.steady_state_error", "%", "fertilizer",
+                    "|mean true flow over the last 5 s - target| / target"),
+    MeasurementSpec("flow.bench.accuracy", "%", "fertilizer",
+                    "[F] eq. 15 over a 50 s bench run against the weighed mass"),
+    MeasurementSpec("flow.field.accuracy", "%", "fertilizer",
+                    "[F] eq. 15 over a 60 s field run against the weighed mass"),
+    MeasurementSpec("flow.comparison.accuracy_gain", "pp", "fertilizer",
+                    "bench accuracy of the DUT minus that of the constant-speed baseline"),
+    MeasurementSpec("flow.fault.sensor_dropout.accuracy", "%", "fertilizer",
+                    "accuracy while one flow module is silent"),
+    MeasurementSpec("flow.fault.sensor_garbage.accuracy", "%", "fertilizer",
+                    "accuracy while one flow module reports garbage"),
+    MeasurementSpec("flow.fault.speed_loss.overdelivery", "g", "fertilizer",
+                    "fertilizer delivered while the machine stands still"),
+    MeasurementSpec("flow.fault.saturation.recovery_time", "s", "fertilizer",
+                    "time to re-enter the +/-5 % band after the target returns in range"),
+    MeasurementSpec("flow.restart.recovery_time", "s", "fertilizer",
+                    "time after a DUT restart until the true flow is back in the +/-5 % band"),
+    MeasurementSpec("flow.busload.accuracy", "%", "fertilizer",
+                    "bench accuracy on a 250 kbit/s bus loaded near its bit rate"),
+    # sowing depth rig, [D]
+    MeasurementSpec("depth.step.response_time", "s", "sowing_depth",
+                    "time from the depth step until the true depth stays in the +/-5 % band"),
+    MeasurementSpec("depth.step.overshoot", "%", "sowing_depth",
+                    "peak of the true depth beyond the target, % of the step"),
+    MeasurementSpec("depth.step.steady_state_error", "%", "sowing_depth",
+                    "|mean true depth over the last 5 s - target| / target"),
+    MeasurementSpec("depth.field.mean", "mm", "sowing_depth",
+                    "mean sampled depth (3 rows x 40 points, headlands excluded)"),
+    MeasurementSpec("depth.field.pass_rate", "%", "sowing_depth",
+                    "GB/T 20865: samples within the qualified band (30 mm: 20-40 mm)"),
+    MeasurementSpec("depth.field.cv", "%", "sowing_depth",
+                    "GB/T 20865: coefficient of variation of the sampled depth"),
+    MeasurementSpec("depth.field.inlier_cv", "%", "sowing_depth",
+                    "CV of the samples inside the qualified band"),
+    MeasurementSpec("depth.fault.drive_recovery_time", "s", "sowing_depth",
+                    "time after a drive fault until the depth is back in the qualified band"),
+    MeasurementSpec("depth.fault.speed_loss.rod_travel", "mm", "sowing_depth",
+                    "rod travel commanded while the ground speed is lost"),
+    MeasurementSpec("depth.restart.recovery_time", "s", "sowing_depth",
+                    "time after a DUT restart until the true depth is back in the band"),
+    MeasurementSpec("depth.busload.pass_rate", "%", "sowing_depth",
+                    "pass rate of a field run on a bus loaded near its bit rate"),
+    # both rigs
+    MeasurementSpec("rig.timing.lateness_p99", "us", "*",
+                    "99th percentile of the rig's period lateness (real time only)"),
+)
+
+MEASUREMENTS: dict[str, MeasurementSpec] = {spec.name: spec for spec in _SPECS}
+
+
+def measurement_names(rig: str) -> list[str]:
+    return [s.name for s in _SPECS if s.rig in (rig, "*")]
+
+
+def known_measurement(name: str, rig: str) -> bool:
+    spec = MEASUREMENTS.get(name)
+    return spec is not None and spec.rig in (rig, "*")
+
+
+def unit_of(name: str) -> str:
+    return MEASUREMENTS[name].unit

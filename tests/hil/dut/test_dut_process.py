@@ -1,0 +1,138 @@
+"""Process hygiene: a DUT process that crashes, hangs, stays silent, floods or leaves children
+behind is handled, its output is kept, and nothing is left running."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import can
+import pytest
+
+from hil.bus import open_bus
+from hil.dut.base import DutError
+from hil.dut.process import ProcessDut
+from hil.dut.profile import load_profile
+from hil.softbus import SoftwareBus
+
+from .conftest import profile_text
+
+
+def _group_alive(pgid: int) -> bool:
+    """A live (not zombie) process is in group ``pgid`` (a zombie waits for a reaper that a
+    container's PID 1 may never be: it runs nothing)."""
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[2]) == pgid and fields[0] != "Z":
+            return True
+    return False
+
+
+@pytest.fixture
+def softbus():
+    with SoftwareBus(port=0) as sb:
+        yield sb
+
+
+def _dut(write_profile, tmp_path: Path, behaviour: str, **kw: object) -> ProcessDut:
+    name = f"toy-{behaviour}-daemon"
+    path = write_profile(name=name, text=profile_text(name, behaviour, **kw))  # type: ignore[arg-type]
+    return ProcessDut(load_profile(path), clock="lockstep", log_dir=tmp_path / behaviour)
+
+
+def test_good_dut_answers_sync_and_stops_cleanly(write_profile, tmp_path, softbus) -> None:
+    dut = _dut(write_profile, tmp_path, "good")
+    rig_bus = open_bus(softbus.spec())
+    try:
+        dut.start(softbus.spec(), {"AGRIHIL_GNSS_PORT": "/dev/null"})
+        dut.check()
+        rig_bus.send(can.Message(arbitration_id=0x080, data=[], is_extended_id=False))
+        deadline = time.monotonic() + 5
+        answer = None
+        while time.monotonic() < deadline and answer is None:
+            msg = rig_bus.recv(0.1)
+            if msg is not None and msg.arbitration_id == 0x220:
+                answer = msg
+        assert answer is not None
+        pid = dut.proc.pid  # type: ignore[union-attr]
+        result = dut.stop()
+    finally:
+        rig_bus.shutdown()
+    assert result["exit_code"] == 0 and not result["ignored_sigterm"]
+    assert "ready" in result["stdout_tail"]
+    assert Path(result["stdout"]).read_text().startswith("toy dut good starting")
+    assert not _group_alive(pid)
+    assert dut.stop() is result      # safe to call twice
+
+
+def test_crash_is_reported_with_exit_status_and_stderr(write_profile, tmp_path, softbus) -> None:
+    dut = _dut(write_profile, tmp_path, "crash")
+    bus = open_bus(softbus.spec())
+    try:
+        dut.start(softbus.spec())
+        bus.send(can.Message(arbitration_id=0x080, data=[], is_extended_id=False))
+        deadline = time.monotonic() + 5
+        while dut.proc.poll() is None and time.monotonic() < deadline:  # type: ignore[union-attr]
+            time.sleep(0.02)
+        with pytest.raises(DutError, match="exit status 3") as info:
+            dut.check()
+        assert "simulated crash" in str(info.value)
+    finally:
+        bus.shutdown()
+        result = dut.stop()
+    assert result["exited_before_stop"] and result["exit_code"] == 3
+    assert "simulated crash" in result["stderr_tail"]
+
+
+def test_dut_ignoring_sigterm_is_killed_and_recorded(write_profile, tmp_path, softbus) -> None:
+    dut = _dut(write_profile, tmp_path, "hang", stop_timeout_s=0.5)
+    dut.start(softbus.spec())
+    pid = dut.proc.pid  # type: ignore[union-attr]
+    t0 = time.monotonic()
+    result = dut.stop()
+    assert result["ignored_sigterm"] is True
+    assert result["exit"] == "signal SIGKILL"
+    assert time.monotonic() - t0 < 5
+    assert not _group_alive(pid)
+
+
+def test_silent_dut_fails_start_with_its_output(write_profile, tmp_path, softbus) -> None:
+    name = "toy-silent-daemon"
+    text = profile_text(name, "silent").replace("ready_timeout_s = 10.0", "ready_timeout_s = 1.0")
+    dut = ProcessDut(load_profile(write_profile(name=name, text=text)), clock="lockstep",
+                     log_dir=tmp_path / "silent")
+    with pytest.raises(DutError, match=r"boot-up frame 0x710 within 1 s"):
+        dut.start(softbus.spec())
+    assert dut.proc is None           # stopped on the way out: nothing left behind
+    assert "toy dut silent starting" in (tmp_path / "silent" / "dut.stdout.log").read_text()
+
+
+def test_grandchildren_are_stopped_with_the_dut(write_profile, tmp_path, softbus) -> None:
+    dut = _dut(write_profile, tmp_path, "child")
+    dut.start(softbus.spec())
+    pid = dut.proc.pid  # type: ignore[union-attr]
+    time.sleep(0.2)
+    assert _group_alive(pid)
+    dut.stop()
+    assert not _group_alive(pid)
+
+
+def test_ready_on_stdout_line(write_profile, tmp_path, softbus) -> None:
+    dut = _dut(write_profile, tmp_path, "good", ready="stdout:ready")
+    dut.start(softbus.spec())
+    try:
+        assert dut.ready_s < 10
+    finally:
+        assert dut.stop()["exit_code"] == 0
+
+
+def test_unstartable_command_names_the_profile(write_profile, tmp_path) -> None:
+    name = "toy-missing-daemon"
+    text = profile_text(name).replace('"{python}"', '"/nonexistent/firmware"')
+    dut = ProcessDut(load_profile(write_profile(name=name, text=text)), clock="lockstep",
+                     log_dir=tmp_path / "missing")
+    with pytest.raises(DutError, match=r"\[launch.command\] cannot start"):
+        dut.start("virtual:toy-missing")
