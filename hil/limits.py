@@ -62,9 +62,10 @@ _SPECS = (
     MeasurementSpec("depth.field.inlier_cv", "%", "sowing_depth",
                     "CV of the samples inside the qualified band"),
     MeasurementSpec("depth.fault.drive_recovery_time", "s", "sowing_depth",
-                    "time after a drive fault until the depth is back in the qualified band"),
+                    "time from a drive fault's cause clearing until the drive is in "
+                    "Operation enabled again"),
     MeasurementSpec("depth.fault.speed_loss.rod_travel", "mm", "sowing_depth",
-                    "rod travel commanded while the ground speed is lost"),
+                    "rod travel while the machine stands still"),
     MeasurementSpec("depth.restart.recovery_time", "s", "sowing_depth",
                     "time after a DUT restart until the true depth is back in the band"),
     MeasurementSpec("depth.busload.pass_rate", "%", "sowing_depth",

@@ -1,0 +1,40 @@
+"""[F]'s comparison with the constant-speed baseline: the same bench runs (same seeds, so the
+same meter, density drift and sensor noise) with the reference open-loop controller.
+
+The measurement is the DUT's mean bench accuracy minus the baseline's, in percentage points
+([F]: 98.14 % against 95.10 %). A flow controller that does not beat a constant-speed meter
+has no reason to exist.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from hil.dut.build import PROJECT_ROOT
+from hil.dut.profile import load_profile
+from hil.metrics import accuracy_theta
+from test_suites.fertilizer.test_flow_accuracy import BENCH_G
+from test_suites.fertilizer.traces import delivered_and_target_g
+
+pytestmark = pytest.mark.hil_rig("fertilizer")
+
+BASELINE = PROJECT_ROOT / "dut_profiles" / "fertilizer-open-loop-daemon.toml"
+
+
+@pytest.mark.hil_suite("fast")
+def test_accuracy_gain_over_constant_speed(hil_run, hil_measure) -> None:
+    baseline = load_profile(BASELINE)
+    dut_theta, base_theta = [], []
+    for target_g in BENCH_G:
+        scenario = f"bench-constant-{target_g}"
+        dut = hil_run(scenario)
+        dut_theta.append(accuracy_theta(*reversed(delivered_and_target_g(dut))))
+        if dut.record.get("error"):
+            hil_measure("flow.comparison.accuracy_gain", float("nan"), run=dut)
+            return
+        base = hil_run(scenario, profile=baseline, bus="inline", label=f"baseline-{target_g}")
+        base_theta.append(accuracy_theta(*reversed(delivered_and_target_g(base))))
+    gain = sum(dut_theta) / len(dut_theta) - sum(base_theta) / len(base_theta)
+    hil_measure("flow.comparison.accuracy_gain", gain,
+                note="DUT " + " / ".join(f"{v:.2f}" for v in dut_theta) + " %; constant speed "
+                     + " / ".join(f"{v:.2f}" for v in base_theta) + " %")

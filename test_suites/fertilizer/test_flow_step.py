@@ -1,0 +1,41 @@
+"""[F] step tests on the bench: target flow steps 0 -> 23 / 34 / 44 g/s per row.
+
+Judged on the *true* flow at the meters (the mean of the rows, as the scale would see it),
+with [F]'s definitions: response time into and staying in a +/-5 % band, overshoot as % of the
+step, steady-state error over the last 5 s. The flow the sensors report is measured too
+(``flow.step.sensed_response_time``): with [F]'s once-per-second sensor it cannot beat ~2 s.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from hil.metrics import step_response
+from test_suites.fertilizer.traces import ENABLE_S, row_mean
+
+pytestmark = pytest.mark.hil_rig("fertilizer")
+
+TARGETS_GPS = (23, 34, 44)
+#: flute pulsation rides on the true flow: average it over 0.5 s (several flute passes at the
+#: test speeds) instead of letting the median filter chase it
+FILTER = {"filter_kind": "mean", "filter_s": 0.5}
+
+
+@pytest.mark.hil_suite("fast")
+@pytest.mark.parametrize("target_gps", TARGETS_GPS)
+def test_flow_step(hil_run, hil_measure, target_gps: int) -> None:
+    result = hil_run(f"bench-step-{target_gps}")
+    conditions = {"target_gps": target_gps}
+    t, true_flow = row_mean(result, "flow_at_meter")
+    m = step_response(t, true_flow, t0=ENABLE_S, target=float(target_gps), y0=0.0, **FILTER)
+    note = "; ".join(m.notes)
+    hil_measure("flow.step.response_time", m.response_time_s, conditions=conditions,
+                run=result, note=note)
+    hil_measure("flow.step.overshoot", m.overshoot_pct, conditions=conditions, run=result)
+    hil_measure("flow.step.steady_state_error", m.steady_state_error_pct,
+                conditions=conditions, run=result)
+    t, sensed = row_mean(result, "sensed_flow")
+    s = step_response(t, sensed, t0=ENABLE_S, target=float(target_gps), y0=0.0,
+                      filter_kind="none")
+    hil_measure("flow.step.sensed_response_time", s.response_time_s, conditions=conditions,
+                run=result, note="; ".join(s.notes))

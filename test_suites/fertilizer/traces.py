@@ -1,0 +1,35 @@
+"""What the fertilizer suites read from a run: traces, truth and the scenario's timing."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hil.record import load_traces
+from hil.rig import RunResult
+
+#: every packaged bench/field scenario enables the controller at 3 s (the flow modules take
+#: 2.2 s to measure their empty-pipe baseline first)
+ENABLE_S = 3.0
+
+
+def row_mean(result: RunResult, prefix: str) -> tuple[np.ndarray, np.ndarray]:
+    """Time and the mean over rows of the traces ``<prefix>_<row>_gps``."""
+    arrays, _ = load_traces(result.out_dir / "traces.npz")
+    rows = sorted(k for k in arrays if k.startswith(prefix + "_") and k.endswith("_gps"))
+    if not rows:
+        raise KeyError(f"{result.out_dir}/traces.npz has no {prefix}_<row>_gps traces")
+    return arrays["time_s"], np.mean([arrays[k] for k in rows], axis=0)
+
+
+def trace(result: RunResult, name: str) -> tuple[np.ndarray, np.ndarray]:
+    arrays, _ = load_traces(result.out_dir / "traces.npz")
+    return arrays["time_s"], arrays[name]
+
+
+def delivered_and_target_g(result: RunResult) -> tuple[float, float]:
+    """What the scale weighs (delivered plus still in the tubes at the end: it falls into the
+    furrow/bucket after the run) and the target mass, all rows ([F] eq. 15's M2 and M1)."""
+    truth = result.record["truth"]
+    rows = len(truth["delivered_g"])
+    delivered = float(truth["delivered_total_g"]) + float(sum(truth["in_transit_g"]))
+    return delivered, float(truth["target_mass_per_row_g"]) * rows

@@ -1,0 +1,149 @@
+"""The pytest plugin, tested the way users meet it: pytest in a subprocess."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+
+PROFILE = '''
+[dut]
+name = "toy-pi-inprocess"
+version = "0.0.1"
+kind = "inprocess"
+rig = "fertilizer"
+controller = "builtin-pi"
+
+[launch]
+inprocess = "plant_emulators.fertilizer.controllers:PiFlowController"
+
+[wiring]
+node_id = 0x10
+
+[timing]
+control_period_ms = 100
+
+[limits]
+"flow.step.overshoot" = { high = 5.0 }
+"flow.step.steady_state_error" = { high = 1.0 }
+'''
+
+SUITE = '''
+import numpy as np
+import pytest
+
+from hil.record import load_traces
+
+pytestmark = [pytest.mark.hil_rig("fertilizer")]
+
+
+@pytest.mark.hil_suite("fast")
+def test_within_limits(hil_run, hil_measure):
+    result = hil_run("bench-step-23")
+    arrays, _ = load_traces(result.out_dir / "traces.npz")
+    flow = arrays["flow_at_meter_1_gps"]
+    assert flow.size > 1000
+    hil_measure("flow.step.overshoot", 1.0, conditions={"target_gps": 23}, run=result)
+
+
+@pytest.mark.hil_suite("fast")
+def test_out_of_limits(hil_run, hil_measure):
+    result = hil_run("bench-step-23")            # cached: the same run as above
+    hil_measure("flow.step.steady_state_error", 7.5, conditions={"target_gps": 23},
+                run=result)
+
+
+@pytest.mark.hil_suite("robustness")
+def test_robust(hil_measure):
+    hil_measure("flow.step.overshoot", 2.0)
+
+
+@pytest.mark.hil_rig("sowing_depth")
+@pytest.mark.hil_suite("fast")
+def test_other_rig(hil_measure):
+    raise AssertionError("must be skipped for a fertilizer DUT")
+'''
+
+
+def _pytest(tmp_path: Path, *args: str, suite: str = SUITE) -> subprocess.CompletedProcess[str]:
+    (tmp_path / "toy-pi-inprocess.toml").write_text(PROFILE)
+    (tmp_path / "test_toy_suite.py").write_text(suite)
+    return subprocess.run(
+        [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-q", "-rs", "-c", "/dev/null",
+         "--rootdir", str(tmp_path), "--import-mode=importlib", str(tmp_path / "test_toy_suite.py"),
+         *args], capture_output=True, text=True, cwd=tmp_path, timeout=300)
+
+
+def test_plugin_runs_measures_and_judges(tmp_path: Path) -> None:
+    report = tmp_path / "qual"
+    proc = _pytest(tmp_path, "--hil-dut", "toy-pi-inprocess.toml", "--hil-bus", "inline",
+                   "--hil-report", str(report), "--hil-suite", "fast",
+                   "--junitxml", str(tmp_path / "junit.xml"))
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 1, out
+    assert "1 failed, 1 passed, 1 skipped, 1 deselected" in out
+    assert "flow.step.steady_state_error[target_gps=23] = 7.5 %: fail (limits None .. 1.0)" in out
+    assert "a sowing_depth suite; the DUT toy-pi-inprocess drives the fertilizer rig" in out
+    assert "agrihil qualification of toy-pi-inprocess: FAIL" in out
+    record = json.loads((report / "record.json").read_text())
+    assert record["schema"] == "agrihil.qualification/1"
+    assert record["verdict"] == "fail"
+    assert record["dut"]["name"] == "toy-pi-inprocess"
+    by_name = {m["name"]: m for m in record["measurements"]}
+    assert by_name["flow.step.overshoot"]["outcome"] == "pass"
+    assert by_name["flow.step.overshoot"]["high"] == 5.0
+    assert by_name["flow.step.steady_state_error"]["outcome"] == "fail"
+    assert len(record["runs"]) == 1                      # the second test reused the run
+    run_dir = report / record["runs"][0]["dir"]
+    assert (run_dir / "traces.npz").exists() and (run_dir / "bus.log").exists()
+    assert by_name["flow.step.overshoot"]["run"] == record["runs"][0]["dir"]
+    props = {p.get("name"): p.get("value")
+             for p in ET.parse(tmp_path / "junit.xml").iter("property")}
+    assert props["flow.step.overshoot[target_gps=23]"] == "1 % (pass)"
+
+
+def test_plugin_passes_a_good_dut(tmp_path: Path) -> None:
+    proc = _pytest(tmp_path, "--hil-dut", "toy-pi-inprocess.toml", "--hil-bus", "inline",
+                   "--hil-report", str(tmp_path / "q"), "-k", "within or robust")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    record = json.loads((tmp_path / "q" / "record.json").read_text())
+    assert record["verdict"] == "pass"
+    assert [m["outcome"] for m in record["measurements"]] == ["pass", "pass"]
+
+
+@pytest.mark.parametrize(("suite", "message"), [
+    (SUITE.replace('hil_suite("robustness")', 'hil_suite("nightly")'),
+     "hil_suite marker needs one of fast, full, robustness"),
+    (SUITE.replace('hil_rig("sowing_depth")', 'hil_rig("sprayer")'),
+     "hil_rig marker needs one rig name"),
+])
+def test_markers_are_validated_at_collection(tmp_path: Path, suite: str, message: str) -> None:
+    proc = _pytest(tmp_path, "--hil-dut", "toy-pi-inprocess.toml", suite=suite)
+    assert proc.returncode == 4
+    assert message in proc.stdout + proc.stderr
+
+
+def test_suites_need_a_dut(tmp_path: Path) -> None:
+    proc = _pytest(tmp_path, "-k", "robust")
+    assert proc.returncode != 0
+    assert "HIL suites need a DUT: pytest --hil-dut PROFILE" in proc.stdout + proc.stderr
+
+
+def test_bad_profile_is_a_usage_error(tmp_path: Path) -> None:
+    (tmp_path / "broken.toml").write_text("[dut]\nname = 3\n")
+    proc = _pytest(tmp_path, "--hil-dut", str(tmp_path / "broken.toml"))
+    assert proc.returncode == 4
+    assert "[dut.name] expected a string" in proc.stdout + proc.stderr
+
+
+def test_unknown_measurement_name_fails_the_test(tmp_path: Path) -> None:
+    suite = SUITE.replace('hil_measure("flow.step.overshoot", 2.0)',
+                          'hil_measure("flow.step.overshot", 2.0)')
+    proc = _pytest(tmp_path, "--hil-dut", "toy-pi-inprocess.toml", "--hil-suite",
+                   "robustness", "--hil-report", str(tmp_path / "q"), suite=suite)
+    assert proc.returncode == 1
+    assert "measurement 'flow.step.overshot' is not in the catalogue" in proc.stdout
