@@ -1,16 +1,103 @@
-"""``hil gate``: placeholder until its module lands (being written now)."""
+"""``hil gate``: a qualification record in, a verdict for the controller build out.
+
+    hil gate qual/record.json
+    hil gate qual/record.json --baseline ci/baselines/DUT.json --tolerance ci/tolerances.toml
+    hil gate qual/record.json --baseline ci/baselines/DUT.json --update-baseline
+
+Exit status: 0 pass; 1 fail (a measurement outside its limits or not computed, a regression
+beyond tolerance, a baseline measurement missing); 2 no verdict (the record is ``invalid-bench``
+or ``error``) or bad input (unreadable record, baseline or tolerance file; a baseline of another
+DUT).
+"""
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+from datetime import UTC, datetime
+from pathlib import Path
+
+from hil.errors import ConfigError
+from hil.gate import (
+    DEFAULT_TOLERANCES,
+    Verdict,
+    baseline_from_record,
+    check_baseline_dut,
+    compare,
+    load_baseline,
+    load_record,
+    load_tolerances,
+    render_markdown,
+    render_text,
+    write_baseline,
+)
 
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    sub = subparsers.add_parser("gate", help="(not built yet)")
-    sub.set_defaults(func=_run)
+    gate = subparsers.add_parser(
+        "gate", help="turn a qualification record into a pass/fail verdict for a build",
+        description="Judge a qualification record (record.json of 'hil qualify'): every "
+                    "measurement against its limits and, with --baseline, against a stored "
+                    "baseline with tolerance bands. Exit 0 pass, 1 fail, 2 no verdict "
+                    "(invalid bench, qualification error) or bad input.")
+    gate.add_argument("record", metavar="RECORD.json", help="the qualification record")
+    gate.add_argument("--baseline", metavar="BASELINE.json",
+                      help="compare against this baseline (and write it with --update-baseline)")
+    gate.add_argument("--tolerance", metavar="FILE.toml",
+                      help="tolerance bands per measurement name (default: 5 %% of the "
+                           "baseline value for every measurement)")
+    gate.add_argument("--summary", metavar="FILE.md",
+                      help="write the Markdown summary here (default: append it to "
+                           "$GITHUB_STEP_SUMMARY when that is set)")
+    gate.add_argument("--allow-regressions", action="store_true",
+                      help="report regressions as warnings instead of failing")
+    gate.add_argument("--update-baseline", action="store_true",
+                      help="write the record as the new baseline to --baseline PATH (only "
+                           "from a passing record unless --force); the comparison with the "
+                           "old baseline is still shown")
+    gate.add_argument("--force", action="store_true",
+                      help="write a baseline from a record that did not pass; compare with "
+                           "or overwrite a baseline of another DUT")
+    gate.set_defaults(func=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
-    print("hil: 'gate' is not built yet", file=sys.stderr)
-    return 2
+    record = load_record(args.record)
+    tolerances = load_tolerances(args.tolerance) if args.tolerance else DEFAULT_TOLERANCES
+    if args.update_baseline and not args.baseline:
+        raise ConfigError("--update-baseline needs --baseline PATH (where to write it)",
+                          key="--baseline")
+    baseline, notes = None, []
+    if args.baseline and (Path(args.baseline).exists() or not args.update_baseline):
+        baseline = load_baseline(args.baseline)
+        notes = check_baseline_dut(baseline, record, force=args.force)
+    result = compare(record, baseline, tolerances, allow_regressions=args.allow_regressions,
+                     accept_changes=args.update_baseline, notes=tuple(notes))
+    written = ""
+    if args.update_baseline:
+        if not record.measurements:
+            raise ConfigError("the record has no measurements: no baseline to write",
+                              path=record.path, key="measurements")
+        if result.verdict is Verdict.PASS or args.force:
+            write_baseline(baseline_from_record(record, created_at=datetime.now(UTC),
+                                                path=args.baseline), args.baseline)
+            written = args.baseline
+        else:
+            print(f"hil: baseline not written: the record did not pass (gate verdict "
+                  f"{result.verdict.value}); --force stores it anyway", file=sys.stderr)
+    _write_summary(render_markdown(result, baseline_written=written), args.summary)
+    print(render_text(result, baseline_written=written))
+    return result.exit_code
+
+
+def _write_summary(markdown: str, path: str | None) -> None:
+    target, mode = (path, "w") if path else (os.environ.get("GITHUB_STEP_SUMMARY"), "a")
+    if not target:
+        return
+    try:
+        with open(target, mode, encoding="utf-8") as fh:
+            fh.write(markdown + "\n")
+    except OSError as exc:
+        raise ConfigError(f"cannot write the summary: {exc.strerror or exc}",
+                          path=target) from exc

@@ -1,0 +1,149 @@
+"""What the gate says: a Markdown page for CI (a GitHub step summary) and a few terminal lines.
+
+Both are pure functions of a :class:`~hil.gate.comparison.GateResult`; the caller writes them.
+The Markdown starts with the verdict line, then the reasons, then one table row per measurement
+identity (worst first): measurement, conditions, value, limits, baseline, delta, status.
+"""
+
+from __future__ import annotations
+
+from hil.gate.comparison import GateResult, Row, Status, Verdict
+from hil.gate.keys import format_conditions
+
+_LABEL = {Verdict.PASS: "PASS", Verdict.FAIL: "FAIL",
+          Verdict.INVALID_BENCH: "INVALID BENCH (no verdict on the DUT)",
+          Verdict.ERROR: "ERROR (the qualification did not run)"}
+_ICON = {Verdict.PASS: "✅", Verdict.FAIL: "❌", Verdict.INVALID_BENCH: "⚠️",
+         Verdict.ERROR: "⚠️"}
+_LOUD = (Status.FAIL, Status.ERROR, Status.MISSING, Status.REGRESSION)
+#: statuses listed one by one in the terminal summary
+_LISTED = (Status.FAIL, Status.ERROR, Status.MISSING, Status.REGRESSION, Status.MARGINAL,
+           Status.IMPROVED, Status.NEW)
+
+
+def render_markdown(result: GateResult, *, baseline_written: str = "") -> str:
+    record = result.record
+    lines = [f"### {_ICON[result.verdict]} agrihil gate: {_LABEL[result.verdict]} — "
+             f"{_md(record.dut.describe())}", ""]
+    lines.append(" · ".join(_sources(result, code=True)))
+    lines.append("")
+    lines += [f"- {_md(reason)}" for reason in result.reasons]
+    lines += [f"- warning: {_md(warning)}" for warning in result.warnings]
+    if baseline_written:
+        lines.append(f"- baseline written to `{baseline_written}`")
+    if result.reasons or result.warnings or baseline_written:
+        lines.append("")
+    counts = ", ".join(f"{n} {status.value}" for status, n in result.counts().items())
+    lines += [f"{len(result.rows)} measurements: {counts or 'none'}", ""]
+    if result.rows:
+        lines.append("| measurement | conditions | value | limits | baseline | delta | status |")
+        lines.append("|---|---|---:|---|---:|---:|---|")
+        for row in result.rows:
+            status = f"**{row.status.value}**" if row.status in _LOUD else row.status.value
+            cells = [_md(c) for c in (format_conditions(row.conditions),
+                                      _quantity(row.value, row.unit),
+                                      _limits(row.low, row.high, ascii_=False),
+                                      _quantity(row.baseline, row.unit), _delta(row))]
+            lines.append("| " + " | ".join([_code(row.name), *cells, status]) + " |")
+        lines.append("")
+    notes = [f"{_code(row.key)}: {_md(note)}" for row in result.rows for note in row.notes]
+    notes += [_md(note) for note in result.notes]
+    if notes:
+        lines.append("Notes:")
+        lines += [f"- {note}" for note in notes]
+        lines.append("")
+    return "\n".join(lines)
+
+
+def render_text(result: GateResult, *, baseline_written: str = "") -> str:
+    record = result.record
+    lines = [f"hil gate: {_LABEL[result.verdict]}: {record.dut.describe()}, run "
+             f"{record.run_id}"]
+    counts = ", ".join(f"{n} {status.value}" for status, n in result.counts().items())
+    lines.append(f"  {len(result.rows)} measurements: {counts or 'none'}")
+    lines.append("  " + "; ".join(_sources(result, code=False)))
+    width = max((len(row.status.value) for row in result.rows), default=0)
+    for row in result.rows:
+        if row.status not in _LISTED:
+            continue
+        value = "no value" if row.value is None else _quantity(row.value, row.unit)
+        if row.status is Status.MISSING:
+            value = "not in the record"
+        text = f"  {row.status.value:<{width}}  {row.key}: {value}"
+        if row.status in (Status.FAIL, Status.MARGINAL):
+            text += f" (limits {_limits(row.low, row.high, ascii_=True)})"
+        if row.baseline is not None:
+            text += f", baseline {_quantity(row.baseline, row.unit)}"
+        if row.delta is not None and row.status in (Status.REGRESSION, Status.IMPROVED):
+            text += f" ({_delta(row, band_sep=', ')})"
+        lines.append(text)
+    lines += [f"  why: {reason}" for reason in result.reasons]
+    lines += [f"  warning: {warning}" for warning in result.warnings]
+    if baseline_written:
+        lines.append(f"  baseline written to {baseline_written}")
+    return "\n".join(lines)
+
+
+def _sources(result: GateResult, *, code: bool) -> list[str]:
+    def q(text: str) -> str:
+        return _code(text) if code else text
+
+    record = result.record
+    run = ", ".join(x for x in (record.bus, record.clock,
+                                "suites " + "+".join(record.suites) if record.suites else "")
+                    if x)
+    parts = [f"record {q(record.path)} (run {record.run_id}{', ' + run if run else ''})"]
+    if result.baseline is not None:
+        when = result.baseline.created_at[:10]
+        parts.append(f"baseline {q(result.baseline.path or '?')} (run "
+                     f"{result.baseline.source_run_id}{', ' + when if when else ''})")
+        tolerances = result.tolerances
+        parts.append(f"tolerances {q(tolerances.path)}" if tolerances.path
+                     else f"tolerances: {tolerances.describe()}")
+    else:
+        parts.append("no baseline: limits only")
+    return parts
+
+
+def _num(value: float) -> str:
+    return f"{value:.5g}"
+
+
+def _quantity(value: float | None, unit: str) -> str:
+    if value is None:
+        return "—"
+    return f"{_num(value)} {unit}".rstrip()
+
+
+def _limits(low: float | None, high: float | None, *, ascii_: bool) -> str:
+    le, ge, dash = ("<=", ">=", "..") if ascii_ else ("≤", "≥", " to ")
+    if low is None and high is None:
+        return "-" if ascii_ else "—"
+    if low is None:
+        return f"{le} {_num(high)}" if high is not None else ""
+    if high is None:
+        return f"{ge} {_num(low)}"
+    return f"{_num(low)}{dash}{_num(high)}"
+
+
+def _delta(row: Row, *, band_sep: str = " ") -> str:
+    """``+0.18 s``; for a regression or an improvement also the band it went beyond."""
+    if row.delta is None:
+        return "—"
+    text = f"{row.delta:+.4g} {row.unit}".rstrip()
+    if row.band is not None and row.status in (Status.REGRESSION, Status.IMPROVED):
+        band = f"band {row.band:.4g} {row.unit}".rstrip()
+        text += f"{band_sep}({band})" if band_sep == " " else f"{band_sep}{band}"
+    return text
+
+
+def _code(text: str) -> str:
+    """A code span (shown verbatim, so only the table's pipe needs escaping)."""
+    return "`" + text.replace("`", "'").replace("|", "\\|").replace("\n", " ") + "`"
+
+
+def _md(text: str) -> str:
+    """One table cell or list item: no pipes or line breaks that would break the table, no
+    ``<…>`` that GitHub would take for (and strip as) HTML."""
+    return (text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+            .replace("|", "\\|").replace("\n", " "))
