@@ -1,0 +1,187 @@
+"""The tables: measurements against limits, runs with their artifacts, tests, errors."""
+
+from __future__ import annotations
+
+from collections import Counter
+from itertools import groupby
+
+from hil.report.markup import (
+    DASH,
+    badge,
+    esc,
+    fmt_num,
+    fmt_seconds,
+    link,
+    note,
+    pre,
+    row,
+    table,
+)
+from hil.report.record import STATUS_ORDER, MeasurementRow, QualRecord
+from hil.report.rundata import RunData
+
+MEASUREMENT_HEADERS = ("name", "conditions", "value", "unit", "low", "high", "outcome", "run")
+MAX_MESSAGE = 800
+
+
+def _outcome_badge(m: MeasurementRow) -> str:
+    if m.status == "marginal":
+        return badge("marginal", "PASS · MARGINAL")
+    return badge(m.status)
+
+
+def _measurement_row(m: MeasurementRow, anchors: dict[str, str]) -> str:
+    # a break opportunity after every dot: long names wrap at their parts on paper
+    name = f"<code>{esc(m.name).replace('.', '.<wbr>')}</code>"
+    if m.note:
+        name += f'<div class="small">{esc(m.note)}</div>'
+    run = DASH
+    if m.run:
+        anchor = anchors.get(m.run)
+        label = esc(m.run.rsplit("/", 1)[-1])
+        run = f'<a href="#{esc(anchor)}">{label}</a>' if anchor else label
+    cells = [name, esc(m.conditions_label) or DASH,
+             f'<span class="num">{esc(fmt_num(m.value))}</span>', esc(m.unit),
+             esc(fmt_num(m.low)), esc(fmt_num(m.high)), _outcome_badge(m), run]
+    return row(cells, f"m-{m.status}")
+
+
+def _group_rank(ms: list[MeasurementRow]) -> int:
+    return min(STATUS_ORDER[m.status] for m in ms)
+
+
+def measurements_section(qual: QualRecord, runs: list[RunData]) -> str:
+    anchors = {r.ref.dir: r.anchor for r in runs}
+    if not qual.measurements:
+        body = note("the record holds no measurements")
+    else:
+        keyed = sorted(qual.measurements, key=lambda m: (m.suite, m.test_name))
+        groups = [(key, list(ms)) for key, ms in
+                  groupby(keyed, key=lambda m: (m.suite, m.test_name))]
+        # groups that need attention first; inside a group: fail, error, marginal, pass, info
+        groups.sort(key=lambda g: _group_rank(g[1]))
+        rows = []
+        for (suite, test), ms in groups:
+            rows.append(f'<tr class="group"><th colspan="{len(MEASUREMENT_HEADERS)}">'
+                        f'<span class="small">{esc(suite)}</span> <b>{esc(test)}</b></th></tr>')
+            ordered = sorted(ms, key=lambda m: STATUS_ORDER[m.status])
+            rows += [_measurement_row(m, anchors) for m in ordered]
+        body = table(MEASUREMENT_HEADERS, rows, "measurements")
+    measured = {m.name for m in qual.measurements}
+    unmeasured = [name for name in qual.limits if name not in measured]
+    if unmeasured:
+        body += note("limits with no measurement in this record: " + ", ".join(unmeasured))
+    return f"""
+<section id="measurements">
+  <h2>Measurements against limits</h2>
+  <p class="small">Grouped by suite and test; groups and rows that need attention come first.
+  The identity of a measurement is its name plus its conditions.</p>
+  {body}
+</section>"""
+
+
+def _timing_cell(run: RunData) -> str:
+    timing = run.timing
+    mode = timing.get("mode")
+    if not mode:
+        return DASH
+    if mode != "realtime":
+        return esc(mode)
+    p99 = timing.get("lateness_p99_s")
+    text = f"realtime, p99 {p99 * 1e6:.0f} µs" if isinstance(p99, int | float) else "realtime"
+    return esc(text) + ("" if timing.get("valid", True) else " " + badge("invalid-bench"))
+
+
+def _counts_cell(run: RunData) -> str:
+    counts = Counter(m.status for m in run.measurements)
+    return ", ".join(f"{n} {s}" for s, n in sorted(counts.items(),
+                                                   key=lambda kv: STATUS_ORDER[kv[0]])) or DASH
+
+
+def runs_section(runs: list[RunData]) -> str:
+    if not runs:
+        return '<section id="runs"><h2>Runs</h2>' + note("the record lists no runs") + "</section>"
+    rows = []
+    for run in runs:
+        arts = " ".join(link(f"{run.ref.dir}/{name}", name) for name in run.artifacts) or (
+            '<span class="note">directory missing</span>')
+        first = f'<span id="{esc(run.anchor)}"></span>{link(run.ref.dir, run.ref.dir)}'
+        verdict = badge(run.result) if run.result else DASH
+        rows.append(row([first, esc(run.scenario) or DASH, verdict,
+                         esc(fmt_seconds(run.ref.sim_s)), esc(fmt_seconds(run.ref.wall_s)),
+                         _timing_cell(run), esc(_counts_cell(run)), arts],
+                        f"r-{run.result or 'unknown'}"))
+    headers = ("run", "scenario", "result", "simulated", "wall", "timing", "measurements",
+               "artifacts")
+    return f"""
+<section id="runs">
+  <h2>Runs</h2>
+  <p class="small">Result: the worst outcome of the run's measurements, or the run's own
+  verdict when it did not complete. Links are relative to this report: keep it in its
+  qualification directory.
+  Replay a bus log with <code>python -m can.player RUN/bus.log</code>; load traces with
+  <code>hil.record.load_traces</code>.</p>
+  {table(headers, rows, "runs")}
+</section>"""
+
+
+def tests_section(qual: QualRecord) -> str:
+    if not qual.tests:
+        return ('<section id="tests"><h2>Tests</h2>' + note("the record lists no tests")
+                + "</section>")
+    counts = Counter(t.outcome or "unknown" for t in qual.tests)
+    summary = ", ".join(f"{n} {o}" for o, n in sorted(counts.items()))
+    rows = []
+    for t in qual.tests:
+        # the tail: pytest puts the exception (the line that says why) last
+        message = ("…" if len(t.message) > MAX_MESSAGE else "") + t.message[-MAX_MESSAGE:]
+        rows.append(row([f"<code>{esc(t.nodeid)}</code>", badge(t.outcome or "unknown"),
+                         esc(fmt_seconds(t.duration_s)), pre(message) if message else ""],
+                        f"t-{t.outcome or 'unknown'}"))
+    return f"""
+<section id="tests">
+  <h2>Tests</h2>
+  <p class="small">{len(qual.tests)} tests: {esc(summary)} (as in <code>junit.xml</code>).</p>
+  {table(("test", "outcome", "duration", "message"), rows, "tests")}
+</section>"""
+
+
+def _run_error(run: RunData) -> str:
+    rec = run.record
+    dut = rec.get("dut") if isinstance(rec.get("dut"), dict) else {}
+    parts = [f"<h3>run {link(run.ref.dir, run.ref.dir)} · {esc(run.scenario)} · "
+             f"{badge(run.verdict or 'error')}</h3>"]
+    if run.error:
+        parts.append(pre(run.error))
+    for key in ("failure", "exit"):
+        if dut.get(key):
+            parts.append(f"<p><b>DUT {esc(key)}:</b> {esc(dut[key])}</p>")
+    for key, title in (("stderr_tail", "DUT stderr (tail)"), ("stdout_tail", "DUT stdout (tail)")):
+        if dut.get(key):
+            parts.append(f"<p><b>{title}</b></p>" + pre(str(dut[key])))
+    if rec.get("traceback"):
+        parts.append("<details><summary>traceback (tail)</summary>"
+                     + pre(str(rec["traceback"])[-2000:]) + "</details>")
+    if len(parts) == 1:
+        parts.append(note("the run's record.json says nothing more"))
+    return "\n".join(parts)
+
+
+def errors_section(qual: QualRecord, runs: list[RunData]) -> str:
+    """Empty when nothing errored."""
+    blocks = []
+    if qual.error:
+        blocks.append("<h3>qualification</h3>" + pre(qual.error))
+    for run in runs:
+        dut = run.record.get("dut")
+        errored = (run.verdict in ("error", "aborted") or run.error
+                   or (isinstance(dut, dict) and dut.get("failure")))
+        if errored:
+            blocks.append(_run_error(run))
+    for t in qual.tests:
+        if t.outcome == "error":
+            blocks.append(f"<h3>test <code>{esc(t.nodeid)}</code> {badge('error')}</h3>"
+                          + (pre(t.message) if t.message else ""))
+    if not blocks:
+        return ""
+    return '<section id="errors"><h2>Errors</h2>\n' + "\n".join(blocks) + "\n</section>"
