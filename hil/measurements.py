@@ -3,8 +3,10 @@
 >>> m = Measurement("flow.step.overshoot", 3.1, "%", high=5.0, conditions={"target_gps": 23})
 >>> m.outcome, m.marginal
 (<Outcome.PASS: 'pass'>, False)
->>> Measurement("flow.step.overshoot", 4.9, "%", high=5.0).marginal
+>>> Measurement("flow.step.overshoot", 4.95, "%", high=5.0).marginal
 True
+>>> Measurement("flow.bench.accuracy", 98.6, "%", low=97.5).marginal
+False
 """
 
 from __future__ import annotations
@@ -26,8 +28,11 @@ class Outcome(StrEnum):
 
 @dataclass(frozen=True)
 class Measurement:
-    """One checked quantity. ``marginal`` is set when a passing value lies within
-    ``marginal_fraction`` of the limit span (or of the limit itself for one-sided limits)."""
+    """One checked quantity. ``marginal`` is set when a passing value lies closer to a limit
+    than ``marginal_band`` (in the value's unit) when given, else than ``marginal_fraction``
+    of the limit span (two-sided limits) or ``one_sided_fraction`` of the limit's magnitude
+    (one-sided: 5 % of a 97.5 % accuracy limit would be 4.9 points, calling nearly every
+    pass marginal)."""
 
     name: str
     value: float
@@ -37,6 +42,8 @@ class Measurement:
     conditions: dict[str, Any] = field(default_factory=dict)
     marginal_fraction: float = 0.05
     note: str = ""
+    one_sided_fraction: float = 0.01
+    marginal_band: float | None = None
 
     @property
     def outcome(self) -> Outcome:
@@ -54,11 +61,13 @@ class Measurement:
     def marginal(self) -> bool:
         if self.outcome is not Outcome.PASS:
             return False
-        if self.low is not None and self.high is not None:
+        if self.marginal_band is not None:
+            band = self.marginal_band
+        elif self.low is not None and self.high is not None:
             band = self.marginal_fraction * (self.high - self.low)
         else:
             limit = self.low if self.low is not None else self.high
-            band = self.marginal_fraction * abs(limit or 0.0)
+            band = self.one_sided_fraction * abs(limit or 0.0)
         return bool((self.low is not None and self.value - self.low < band)
                     or (self.high is not None and self.high - self.value < band))
 

@@ -206,7 +206,9 @@ class QualificationSession:
         limit = self.profile.limit(name)
         m = Measurement(name, float(value), MEASUREMENTS[name].unit,
                         low=limit.low if limit else None, high=limit.high if limit else None,
-                        conditions=dict(conditions or {}), note=note)
+                        conditions=dict(conditions or {}), note=note,
+                        **({"marginal_band": limit.marginal}
+                           if limit is not None and limit.marginal is not None else {}))
         entry = m.to_dict()
         entry["test"] = nodeid
         entry["run"] = self.run_dir_of(run) if run is not None else ""
@@ -253,11 +255,10 @@ class QualificationSession:
         record = self.record(exitstatus)
         self.report_dir.mkdir(parents=True, exist_ok=True)
         (self.report_dir / "record.json").write_text(json.dumps(record, indent=2, default=str))
+        from hil.report import write_html
+
         try:
-            from hil.report import write_html
             write_html(self.report_dir)
-        except ImportError:
-            pass
         except Exception as exc:  # the record is written; say loudly the page is not
             session.config.stash[_REPORT_ERROR] = f"report.html not written: {exc}"
 

@@ -132,12 +132,17 @@ class Timing:
 class Limit:
     low: float | None = None
     high: float | None = None
+    #: a pass closer than this to a limit is flagged marginal (in the measurement's unit;
+    #: default: 5 % of the span for two-sided limits, 1 % of the limit for one-sided ones)
+    marginal: float | None = None
 
     def __post_init__(self) -> None:
         if self.low is None and self.high is None:
             raise ValueError("a limit needs low, high or both")
         if self.low is not None and self.high is not None and self.low > self.high:
             raise ValueError(f"low {self.low} is above high {self.high}")
+        if self.marginal is not None and self.marginal < 0:
+            raise ValueError(f"marginal must be >= 0, got {self.marginal}")
 
 
 @dataclass(frozen=True)
