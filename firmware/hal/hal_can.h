@@ -1,0 +1,65 @@
+/* CAN hardware abstraction: open a bus by spec string, send, receive with a timeout, close.
+ *
+ * Host backends (chosen by the spec's transport):
+ *   socketcan:IFACE                Linux SocketCAN raw socket (can0, vcan0, ...)
+ *   socketcand:HOST:PORT[/CHANNEL] the socketcand text protocol over TCP (agrihil's software
+ *                                  bus speaks it); CHANNEL defaults to can0
+ * Options after a ',' (",bitrate=250000") are accepted and ignored: the bit rate belongs to the
+ * interface, not to a raw socket.
+ *
+ * To port to an MCU, implement these five functions over the CAN peripheral's driver (hal_can_t
+ * can hold whatever the driver needs; `spec` may be ignored). No allocation: the caller owns the
+ * hal_can_t, usually as a static. */
+#ifndef AGRIHIL_HAL_CAN_H
+#define AGRIHIL_HAL_CAN_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "bus_spec.h"
+
+typedef struct {
+    uint32_t id;      /* 11-bit or 29-bit identifier */
+    bool extended;    /* 29-bit identifier */
+    uint8_t len;      /* 0..8 */
+    uint8_t data[8];
+} hal_can_frame_t;
+
+#define HAL_CAN_RXBUF 4096
+#define HAL_CAN_ERRLEN 256
+
+typedef struct {
+    bus_transport_t transport;
+    int fd;
+    /* socketcand: bytes received but not yet parsed into messages */
+    char rx[HAL_CAN_RXBUF];
+    size_t rx_len;
+    /* last error, for the caller to print */
+    char error[HAL_CAN_ERRLEN];
+} hal_can_t;
+
+/* Result of hal_can_recv */
+enum { HAL_CAN_ERROR = -1, HAL_CAN_TIMEOUT = 0, HAL_CAN_FRAME = 1 };
+
+/* Open the bus named by `spec`; 0 on success, -1 with bus->error set. */
+int hal_can_open(hal_can_t *bus, const char *spec);
+
+/* Send one frame; 0 on success, -1 with bus->error set (e.g. the server went away). */
+int hal_can_send(hal_can_t *bus, const hal_can_frame_t *frame);
+
+/* Wait up to timeout_us (0: poll) for a frame. HAL_CAN_FRAME with *frame filled,
+ * HAL_CAN_TIMEOUT (also when a signal interrupted the wait) or HAL_CAN_ERROR. */
+int hal_can_recv(hal_can_t *bus, hal_can_frame_t *frame, int64_t timeout_us);
+
+void hal_can_close(hal_can_t *bus);
+
+/* Backends (hal_can.c dispatches to them) */
+int hal_socketcan_open(hal_can_t *bus, const bus_spec_t *spec);
+int hal_socketcan_send(hal_can_t *bus, const hal_can_frame_t *frame);
+int hal_socketcan_recv(hal_can_t *bus, hal_can_frame_t *frame, int64_t timeout_us);
+int hal_socketcand_open(hal_can_t *bus, const bus_spec_t *spec);
+int hal_socketcand_send(hal_can_t *bus, const hal_can_frame_t *frame);
+int hal_socketcand_recv(hal_can_t *bus, hal_can_frame_t *frame, int64_t timeout_us);
+
+#endif
