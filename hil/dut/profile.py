@@ -74,7 +74,8 @@ class Launch:
     lockstep_args: tuple[str, ...] = ()
     realtime_args: tuple[str, ...] = ()
     env: dict[str, str] = field(default_factory=dict)
-    #: "module:Class" of the same controller as an in-process object (lockstep, inline bus)
+    #: "module:factory" (or a class) building the same controller in-process from the
+    #: parameters as keyword arguments (lockstep on the inline bus)
     inprocess: str = ""
     #: how the rig knows the DUT is on the bus: its CANopen boot-up frame, a line on its
     #: stdout ("stdout:<text>"), or a fixed delay ("delay")
