@@ -14,6 +14,7 @@ with the verdict ``error`` (or ``aborted``) and the error text, then lets the ex
 from __future__ import annotations
 
 import datetime as dt
+import functools
 import json
 import platform
 import sys
@@ -48,6 +49,14 @@ _PACKAGES = ("agrihil", "python-can", "cantools", "canopen", "control", "numpy",
 
 
 def versions() -> dict[str, str]:
+    """Python, platform and package versions (looked up once per process: the metadata scan
+    and ``platform.platform()`` cost tens of ms, and they do not change under a running
+    process)."""
+    return dict(_versions())
+
+
+@functools.cache
+def _versions() -> dict[str, str]:
     out = {"python": platform.python_version(), "platform": platform.platform()}
     for name in _PACKAGES:
         try:

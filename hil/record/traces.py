@@ -1,14 +1,17 @@
 """Named signal traces with units, stored as one compressed ``.npz`` (plus CSV on request).
 
-Rows are appended at a fixed channel order; each channel is kept in an ``array('d')`` so
-appending costs no numpy call. ``traces.npz`` holds ``time_s`` and one array per channel; the
-units are stored inside it as ``__units__`` (a JSON string) so the file stands alone.
+Rows are appended at a fixed channel order into one flat, row-major ``array('d')`` (time, then
+the channels): a row costs one ``append`` and one C-level ``extend``, no numpy call and no
+per-channel Python loop; the columns are cut out with numpy when the traces are saved.
+``traces.npz`` holds ``time_s`` and one array per channel; the units are stored inside it as
+``__units__`` (a JSON string) so the file stands alone.
 """
 
 from __future__ import annotations
 
 import csv
 import json
+import zipfile
 from array import array
 from collections.abc import Sequence
 from pathlib import Path
@@ -26,40 +29,47 @@ class TraceSet:
     def __init__(self) -> None:
         self.names: list[str] = []
         self.units: dict[str, str] = {}
-        self._time = array("d")
-        self._columns: list[array[float]] = []
+        #: every row, time first, then one value per channel
+        self._data = array("d")
+        self._rows = 0
 
     def declare(self, name: str, unit: str) -> int:
         """Add a channel; returns its column index. Only before the first row."""
         if name in self.units:
             raise TraceError(f"trace {name!r} declared twice")
-        if len(self._time):
+        if self._rows:
             raise TraceError(f"trace {name!r} declared after rows were recorded")
         self.names.append(name)
         self.units[name] = unit
-        self._columns.append(array("d"))
         return len(self.names) - 1
 
     def append(self, time_s: float, values: Sequence[float]) -> None:
-        if len(values) != len(self._columns):
-            raise TraceError(f"row has {len(values)} values for {len(self._columns)} traces")
-        self._time.append(time_s)
-        for column, value in zip(self._columns, values, strict=True):
-            column.append(value)
+        width = len(self.names)
+        if len(values) != width:
+            raise TraceError(f"row has {len(values)} values for {width} traces")
+        data = self._data
+        try:
+            data.append(time_s)
+            data.extend(values)
+        except BaseException:
+            del data[self._rows * (width + 1):]          # never leave half a row behind
+            raise
+        self._rows += 1
 
     def __len__(self) -> int:
-        return len(self._time)
+        return self._rows
 
     def arrays(self) -> dict[str, np.ndarray]:
-        out = {"time_s": np.frombuffer(self._time, dtype=np.float64).copy()}
-        for name, column in zip(self.names, self._columns, strict=True):
-            out[name] = np.frombuffer(column, dtype=np.float64).copy()
+        table = np.frombuffer(self._data, dtype=np.float64).reshape(self._rows,
+                                                                    len(self.names) + 1)
+        out = {"time_s": table[:, 0].copy()}
+        for i, name in enumerate(self.names, start=1):
+            out[name] = table[:, i].copy()
         return out
 
     def save_npz(self, path: Path) -> Path:
         units = {"time_s": "s", **self.units}
-        np.savez_compressed(path, __units__=np.array(json.dumps(units)), **self.arrays())
-        return path
+        return write_npz(path, {"__units__": np.array(json.dumps(units)), **self.arrays()})
 
     def save_csv(self, path: Path) -> Path:
         arrays = self.arrays()
@@ -71,6 +81,20 @@ class TraceSet:
             for row in zip(*columns, strict=True):
                 writer.writerow([repr(float(v)) for v in row])
         return path
+
+
+def write_npz(path: Path, arrays: dict[str, np.ndarray], *, level: int = 1) -> Path:
+    """Save ``arrays`` as a compressed ``.npz``: what ``np.savez_compressed`` writes (a zip of
+    ``.npy`` members written by ``np.lib.format.write_array``; ``np.load`` reads it the same
+    way) with deflate level 1 instead of zlib's default 6. Recorded signals are float64 that
+    compress by a third either way; level 1 takes half the time or less, and saving sits on
+    every run's critical path."""
+    with zipfile.ZipFile(path, mode="w", compression=zipfile.ZIP_DEFLATED,
+                         compresslevel=level) as archive:
+        for name, value in arrays.items():
+            with archive.open(f"{name}.npy", mode="w", force_zip64=True) as member:
+                np.lib.format.write_array(member, np.asanyarray(value), allow_pickle=False)
+    return path
 
 
 def load_traces(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, str]]:

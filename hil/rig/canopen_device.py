@@ -30,6 +30,15 @@ NMT_STATES = {"INITIALISING": 0x00, "STOPPED": 0x04, "OPERATIONAL": 0x05,
 SYNC_ID = 0x080
 
 
+#: a PDO map's variables as (variable, index, subindex, first byte, end byte); first byte -1:
+#: not byte-aligned (canopen's bit-level path)
+_Plan = tuple[tuple[Any, int, int, int, int], ...]
+
+
+def _bit_plan(pdo: PdoMap) -> _Plan:
+    return tuple((var, var.index, var.subindex, -1, -1) for var in pdo.map)
+
+
 class _NoTask:
     """What ``send_periodic`` returns here: the rig schedules periodic frames itself."""
 
@@ -80,6 +89,8 @@ class CanopenDevice(Device):
         self._pending_sync_rpdos: list[tuple[PdoMap, bytes]] = []
         #: RPDO values the device refused (no SDO to abort on the PDO path): (index, sub, why)
         self.rejected: list[tuple[int, int, str]] = []
+        #: per PDO map: (its variable list, its length, byte plan or None); see _byte_plan
+        self._plans: dict[int, tuple[Any, int, _Plan | None]] = {}
         self.node.nmt.state = "PRE-OPERATIONAL"
         self._reload_pdos()
 
@@ -220,16 +231,46 @@ class CanopenDevice(Device):
         return None
 
     def _tpdo_frame(self, tpdo: PdoMap) -> can.Message:
-        for var in tpdo.map:
-            var.set_data(self.node.get_data(var.index, var.subindex))
+        plan = self._byte_plan(tpdo)
+        if plan is None:
+            for var in tpdo.map:
+                var.set_data(self.node.get_data(var.index, var.subindex))
+        else:
+            # canopen's own byte-aligned branch of PdoVariable.set_data, without its per-variable
+            # debug formatting: the same bytes land in the same map buffer
+            data, get = tpdo.data, self.node.get_data
+            for _, index, subindex, start, _ in plan:
+                value = get(index, subindex)
+                data[start:start + len(value)] = value
+            tpdo.update()
         return can.Message(arbitration_id=tpdo.cob_id, data=bytes(tpdo.data),
                            is_extended_id=False)
 
     def _store_rpdo(self, rpdo: PdoMap, data: bytes) -> None:
         rpdo.data = bytearray(data.ljust(len(rpdo.data), b"\x00"))
-        for var in rpdo.map:
+        plan = self._byte_plan(rpdo)
+        for var, index, subindex, start, stop in plan or _bit_plan(rpdo):
+            # with a byte plan, canopen's byte-aligned branch of PdoVariable.get_data: a slice
+            # of the map buffer
+            value = var.get_data() if start < 0 else rpdo.data[start:stop]
             try:
-                self.node.set_data(var.index, var.subindex, var.get_data())
+                self.node.set_data(index, subindex, value)
             except (canopen.SdoAbortedError, ValueError) as exc:
-                self.rejected.append((var.index, var.subindex, str(exc)))
+                self.rejected.append((index, subindex, str(exc)))
+
+    def _byte_plan(self, pdo: PdoMap) -> _Plan | None:
+        """(variable, index, subindex, first byte, end byte) of every mapped variable if all
+        are whole bytes at whole-byte offsets (else None: canopen's bit-level path). Kept per
+        map and rebuilt when canopen rebuilds the map's variable list (a new list on every
+        ``read``) or adds to it."""
+        variables = pdo.map
+        cached = self._plans.get(id(pdo))
+        if cached is not None and cached[0] is variables and cached[1] == len(variables):
+            return cached[2]
+        plan: _Plan | None = None
+        if not any(var.offset is None or var.offset % 8 or var.length % 8 for var in variables):
+            plan = tuple((var, var.index, var.subindex, var.offset // 8,
+                          var.offset // 8 + len(var.od) // 8) for var in variables)
+        self._plans[id(pdo)] = (variables, len(variables), plan)
+        return plan
 

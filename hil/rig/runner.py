@@ -29,6 +29,7 @@ from hil.dut.base import DutError, DutRunner
 from hil.dut.inprocess import InProcessDut
 from hil.errors import BusError, ConfigError, StepTimeoutError
 from hil.record import Recorder, Verdict
+from hil.record.traces import write_npz
 from hil.rig.base import Rig, RigContext
 from hil.rig.scenario import Scenario
 
@@ -81,9 +82,11 @@ class _Loop:
                                    await_any=rig.await_any_command,
                                    on_send=self._on_sync_sent)
         self.clock.add_participant(self.barrier)
+        self._log_frame = rec.log_frame
+        self._now = self.clock.now
 
     def _log(self, msg: can.Message, *, rx: bool) -> None:
-        self.rec.log_frame(msg, self.clock.now(), rx=rx)
+        self._log_frame(msg, self._now(), rx=rx)
 
     def _on_sync_sent(self, sync: can.Message) -> None:
         """The rig's own nodes hear its SYNC too (a bus does not echo a sender's frames):
@@ -138,49 +141,68 @@ class _Loop:
         speed = scenario.speed_at(0.0)
         if speed is not None:
             rig.set_input("ground_speed_mps", speed, 0.0)
-        device_due = [math.ceil(d.next_due(-1.0) / dt - 1e-9) for d in rig.devices]
+        devices = rig.devices
+        device_due = [math.ceil(d.next_due(-1.0) / dt - 1e-9) for d in devices]
+        next_device = min(device_due, default=ticks_total + 1)
         traced = rig.trace_signals()
         for name, (_, unit) in traced.items():
             self.rec.traces.declare(name, unit)
         trace_names = list(traced)
+        # a rig that overrides trace_row() gives its row without building the dict
+        trace_row = rig.trace_row if type(rig).trace_row is not Rig.trace_row else None
+        append_row = self.rec.traces.append
+        # the loop runs 100 times per simulated second: what it calls, bound once
+        send, drain, advance = self.send, self.drain, rig.advance
+        clock, barrier = self.clock, self.barrier
+        complete_step, tick, batches = clock.complete_step, clock.tick, clock.batches
+        sync_next_due, sync_due = barrier.next_due, barrier.due
+        n_events = len(events)
+        event_tick = events[0][0] if events else ticks_total   # tick of the next event
 
-        self.clock.start()
+        clock.start()
         k = 0
         try:
             while True:
                 t = k * dt
-                while next_event < len(events) and events[next_event][0] <= k:
-                    self._apply(events[next_event][1], t)
-                    next_event += 1
-                for i, device in enumerate(rig.devices):
-                    if device_due[i] <= k:
-                        for msg in device.emit(t):
-                            self.send(msg)
-                        device_due[i] = math.ceil(device.next_due(t) / dt - 1e-9)
+                if event_tick <= k:
+                    while next_event < n_events and events[next_event][0] <= k:
+                        self._apply(events[next_event][1], t)
+                        next_event += 1
+                    event_tick = events[next_event][0] if next_event < n_events \
+                        else ticks_total
+                if next_device <= k:    # only when some device is due (in order, as ever)
+                    for i, device in enumerate(devices):
+                        if device_due[i] <= k:
+                            for msg in device.emit(t):
+                                send(msg)
+                            device_due[i] = math.ceil(device.next_due(t) / dt - 1e-9)
+                    next_device = min(device_due)
                 if k % trace_ticks == 0:
                     if speed is not None:
                         rig.set_input("ground_speed_mps", scenario.speed_at(t) or 0.0, t)
-                    signals = rig.trace_signals()
-                    self.rec.traces.append(t, [signals[name][0] for name in trace_names])
-                self.clock.complete_step()
+                    if trace_row is not None:
+                        append_row(t, trace_row())
+                    else:
+                        signals = rig.trace_signals()
+                        append_row(t, [signals[name][0] for name in trace_names])
+                complete_step()
                 if k >= ticks_total:
                     break
-                target = min(ticks_total, self.barrier.next_due(k),
-                             (k // trace_ticks + 1) * trace_ticks, *device_due,
-                             events[next_event][0] if next_event < len(events) else ticks_total)
-                if self.clock.batches:
+                target = min(ticks_total, sync_next_due(k), (k // trace_ticks + 1) * trace_ticks,
+                             next_device, event_tick)
+                if batches:
                     # lockstep: the DUT only acts on what the rig sends, so its unawaited frames
                     # (status, heartbeat) are collected once per control period, after SYNC
-                    if self.barrier.due(k):
-                        self.drain()
+                    if sync_due(k):
+                        drain()
                     n = max(1, target - k)
-                    k = self.clock.tick(n)
-                    rig.advance(n, dt)
+                    k = tick(n)
+                    advance(n, dt)
                 else:
                     while k < target:   # real time: one physics step per tick
-                        k = self.clock.tick()
-                        self.drain()
-                        rig.advance(1, dt)
+                        k = tick()
+                        drain()
+                        advance(1, dt)
         finally:
             self.rec.timing = self.clock.stop()
 
@@ -201,8 +223,6 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
                  options: RunOptions) -> RunResult:
     """Run ``scenario`` on a fresh ``rig_cls`` against ``dut``; write everything to
     ``options.out_dir`` and return the record."""
-    from hil.softbus import SoftwareBus
-
     seed = options.seed if options.seed is not None else scenario.seed
     run_id = uuid.uuid4().hex[:12]
     notes: list[dict[str, Any]] = []
@@ -216,6 +236,8 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
     with rec, ExitStack() as stack:
         spec = options.bus
         if spec == "softbus":
+            from hil.softbus import SoftwareBus  # only here: its import costs ~15 ms
+
             softbus = stack.enter_context(SoftwareBus(port=0))
             spec = softbus.spec()
             stack.callback(lambda: rec.meta.__setitem__("softbus", softbus.stats()))
@@ -257,7 +279,7 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
             rec.meta["truth"] = rig.truth()
             truth_arrays = rig.truth_arrays()
             if truth_arrays:
-                np.savez_compressed(options.out_dir / "truth.npz", **truth_arrays)
+                write_npz(options.out_dir / "truth.npz", truth_arrays)
             rec.meta["frames"] = {"tx": loop.frames_tx, "rx": loop.frames_rx}
             rec.meta["wall_s"] = time.perf_counter() - wall0
             rec.meta["sim_s"] = sim_s

@@ -56,6 +56,20 @@ class FlowModuleDevice(PeriodicDevice):
             return []
         return self.frames(time_s)
 
+    def next_due(self, time_s: float) -> float:
+        """The next poll that can find a report: polls before the sensor's next window end
+        find nothing and send nothing whatever the faults, so the runner need not make them
+        (a report every second, a poll every 10 ms). The poll that takes a report is the same
+        as with every poll made: the first one at or after the step that produced it."""
+        poll = super().next_due(time_s)
+        sensor = self.sensor
+        ready, step = sensor.next_report_time_s(), sensor.step_s
+        if ready is None or step is None or sensor.reports_pending:
+            return poll
+        # the first poll at or after the report's step: half a physics step of margin keeps
+        # float rounding of the two time grids out of the comparison
+        return max(poll, super().next_due(ready - 0.5 * step))
+
 
 class GroundWheelDevice(PeriodicDevice):
     """The Hall ground-wheel speed node of [F]."""

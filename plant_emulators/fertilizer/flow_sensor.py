@@ -120,6 +120,9 @@ def _crossing(t0: float, step: float, due: float) -> tuple[int, float]:
         t0 = clock[-1]
 
 
+_hypot = math.hypot
+
+
 class SensorStatus(enum.IntFlag):
     """Status bits of a flow report (the DBC's FlowModule status byte)."""
 
@@ -264,6 +267,24 @@ class FlowSensor:
         """Time between reports on the module's clock (s)."""
         return self._sub_s
 
+    @property
+    def step_s(self) -> float | None:
+        """The step the module is advanced by (bound by the first :meth:`advance`)."""
+        return self._dt
+
+    @property
+    def reports_pending(self) -> int:
+        """Reports produced and not yet taken (:meth:`take_reports`)."""
+        return len(self._pending)
+
+    def next_report_time_s(self) -> float | None:
+        """Rig time of the step at whose end the next report will be produced (the end of the
+        running window, scheduled in advance on the module's own clock); ``None`` until the
+        step size is bound by the first :meth:`advance`. No report can appear before then."""
+        if self._dt is None:
+            return None
+        return self._sub_at * self._dt
+
     # ------------------------------------------------------------------ stepping
     def _bind_dt(self, dt: float) -> None:
         if self._dt is not None:
@@ -298,14 +319,16 @@ class FlowSensor:
         """
         if n < 0:
             raise ValueError(f"n must be >= 0, got {n}")
-        self._bind_dt(dt)
+        if dt != self._dt:          # first call (binds the step) or a changed step (raises)
+            self._bind_dt(dt)
         q = flow_gps if flow_gps > 0.0 else 0.0
         vibration = self.vibration_rms_mps2
         if vibration != self._noise_vib:
             # The vibration is an input held for the whole call: the noise level is
-            # recomputed only when it changes, not at every conversion.
+            # recomputed only when it changes, not at every conversion (what _noise_level
+            # computes, inlined: this runs on every call of a moving rig).
             self._noise_vib = vibration
-            self._noise_pf = self._noise_level(vibration)
+            self._noise_pf = _hypot(self._adc_noise_pf, self._vib_pf_per_mps2 * vibration)
         step, conv_due, conv_s = self._step_rig, self._conv_due, self._conv_s
         h, inv_tau = self._holdup_g, self._inv_tau
         h_acc, conv_start = self._h_acc, self._conv_start
@@ -342,7 +365,7 @@ class FlowSensor:
 
     def _noise_level(self, vibration_rms_mps2: float) -> float:
         """RMS capacitance noise of one conversion (pF): ADC noise and vibration combined."""
-        return math.hypot(self._adc_noise_pf, self._vib_pf_per_mps2 * vibration_rms_mps2)
+        return _hypot(self._adc_noise_pf, self._vib_pf_per_mps2 * vibration_rms_mps2)
 
     def _convert(self, holdup_g: float) -> float:
         """One AD7746 conversion of the mean holdup over the conversion time.

@@ -1,7 +1,11 @@
 """Typed codecs for the fertilizer rig's CAN frames, through the shipped DBC (cantools).
 
-Nothing here packs bytes by hand: every frame is encoded and decoded by cantools from
-``db/fertilizer.dbc``. :class:`FertilizerDatabase` adds what a rig needs on top:
+Nothing here packs bytes by hand: every frame is encoded and decoded from ``db/fertilizer.dbc``
+as cantools defines it. The hot path uses layouts compiled at start-up *from* cantools' message
+and signal definitions (:mod:`hil.rig.fastcodec`: shifts and masks instead of bitstruct, ~4 µs
+to encode a frame instead of ~20 µs); any frame, value or error that path does not cover goes
+through cantools' own ``encode``/``decode`` as before. :class:`FertilizerDatabase` adds what a rig
+needs on top:
 
 * ``encode(name, signals)`` → :class:`can.Message` with the right id, extended flag and DLC;
   signals the DBC gives a start value (``GenSigStartValue``: reserved fields, "not available"
@@ -35,6 +39,7 @@ from cantools.database.can import Database, Message, Signal
 from cantools.database.errors import Error as CantoolsError
 
 from hil.errors import ConfigError, FrameError
+from hil.rig.fastcodec import KIND_IDENTITY, KIND_LINEAR, FrameLayout
 from plant_emulators.fertilizer.config import FertilizerRigConfig
 from plant_emulators.fertilizer.flow_sensor import FlowReport, SensorStatus
 from plant_emulators.fertilizer.ground_speed import HallReport, TractorSpeedReport
@@ -143,16 +148,15 @@ class FertilizerDatabase:
 
     def __init__(self, dbc_path: str | Path | None = None) -> None:
         path = Path(dbc_path) if dbc_path is not None else DEFAULT_DBC
-        try:
-            db = cantools.database.load_file(str(path))
-        except (OSError, CantoolsError) as exc:
-            raise FrameError(f"{path}: cannot load the CAN database: {exc}") from exc
-        if not isinstance(db, Database):
-            raise FrameError(f"{path}: not a CAN database")
+        db, fast = _load(path)
         self.path = path
         self.db = db
         self._by_pgn: dict[int, Message] = {
             j1939_pgn(m.frame_id): m for m in db.messages if m.protocol == "j1939"}
+        #: frame name → compiled encoder (frames whose layout :mod:`hil.rig.fastcodec` covers)
+        self._fast: dict[str, _FastFrame] = fast
+        #: (id, extended) → (message, compiled frame or None): the lookup :meth:`decode` did
+        self._decode_memo: dict[tuple[int, bool], tuple[Message, _FastFrame | None]] = {}
 
     @classmethod
     def from_config(cls, config: FertilizerRigConfig) -> FertilizerDatabase:
@@ -234,6 +238,16 @@ class FertilizerDatabase:
             Unknown frame, unknown or missing signal, a value out of range, or a value the
             raw field cannot hold; the message names the frame and the signal.
         """
+        fast = self._fast.get(name)
+        if fast is not None:
+            frame = fast.encode(signals, strict)
+            if frame is not None:
+                return frame
+        return self._encode_cantools(name, signals, strict=strict)
+
+    def _encode_cantools(self, name: str, signals: Mapping[str, SignalValue], *,
+                         strict: bool) -> can.Message:
+        """:meth:`encode` through cantools: every check, every error message."""
         msg = self.message(name)
         known = {s.name: s for s in msg.signals}
         unknown = sorted(set(signals) - set(known))
@@ -290,23 +304,35 @@ class FertilizerDatabase:
         FrameError
             The id is not in the database, or the data cannot be decoded.
         """
-        frame_id = msg.arbitration_id
-        try:
-            if msg.is_extended_id:
-                message = self._by_pgn.get(j1939_pgn(frame_id)) \
-                    or self.db.get_message_by_frame_id(frame_id, force_extended_id=True)
-            else:
-                message = self.db.get_message_by_frame_id(frame_id)
-        except KeyError:
-            kind = "extended" if msg.is_extended_id else "standard"
-            raise FrameError(f"no frame with {kind} id {frame_id:#x} in {self.path.name}") \
-                from None
+        key = (msg.arbitration_id, bool(msg.is_extended_id))
+        entry = self._decode_memo.get(key)
+        if entry is None:
+            message = self._lookup(msg)
+            entry = self._decode_memo[key] = (message, self._fast.get(message.name))
+        message, fast = entry
+        if fast is not None:
+            values = fast.decode(msg.data)
+            if values is not None:
+                return message.name, values
         try:
             values = message.decode(bytes(msg.data), decode_choices=False)
         except (CantoolsError, ValueError) as exc:
             raise FrameError(f"{message.name}: cannot decode {bytes(msg.data).hex()}: {exc}") \
                 from exc
         return message.name, dict(values)  # type: ignore[arg-type]
+
+    def _lookup(self, msg: can.Message) -> Message:
+        """The message a received frame is: ISO 11783 frames by PGN, others by id."""
+        frame_id = msg.arbitration_id
+        try:
+            if msg.is_extended_id:
+                return self._by_pgn.get(j1939_pgn(frame_id)) \
+                    or self.db.get_message_by_frame_id(frame_id, force_extended_id=True)
+            return self.db.get_message_by_frame_id(frame_id)
+        except KeyError:
+            kind = "extended" if msg.is_extended_id else "standard"
+            raise FrameError(f"no frame with {kind} id {frame_id:#x} in {self.path.name}") \
+                from None
 
     # ------------------------------------------------------------------ frame helpers
     def flow_module(self, row: int, report: FlowReport) -> can.Message:
@@ -407,6 +433,120 @@ class FertilizerDatabase:
     def sync(self) -> can.Message:
         """A CANopen SYNC without counter."""
         return self.encode("SYNC", {})
+
+
+_INF = math.inf
+
+#: parsed databases by (path, mtime, size): the rig and an in-process controller load the same
+#: DBC (tens of ms each with cantools' parser); the objects are only ever read
+_LOADED: dict[tuple[str, int, int], tuple[Database, dict[str, _FastFrame]]] = {}
+
+
+def _load(path: Path) -> tuple[Database, dict[str, _FastFrame]]:
+    """The parsed database at ``path`` and its compiled frames (cached while the file is
+    unchanged)."""
+    try:
+        st = path.stat()
+        key: tuple[str, int, int] | None = (str(path.resolve()), st.st_mtime_ns, st.st_size)
+    except OSError:
+        key = None
+    if key is not None and key in _LOADED:
+        return _LOADED[key]
+    try:
+        db = cantools.database.load_file(str(path))
+    except (OSError, CantoolsError) as exc:
+        raise FrameError(f"{path}: cannot load the CAN database: {exc}") from exc
+    if not isinstance(db, Database):
+        raise FrameError(f"{path}: not a CAN database")
+    fast = {}
+    for message in db.messages:
+        frame = _FastFrame.build(message)
+        if frame is not None:
+            fast[message.name] = frame
+    if key is not None:
+        _LOADED[key] = (db, fast)
+    return db, fast
+
+
+class _FastFrame:
+    """One frame's :meth:`FertilizerDatabase.encode` and ``decode`` on its compiled layout.
+
+    Both return ``None`` (the caller then runs cantools) for anything but plain finite numbers
+    that pass the same checks as the cantools path: unknown, missing or non-numeric signals,
+    values outside [min, max] (strict) or outside the raw field, short payloads.
+    """
+
+    __slots__ = ("decode_specs", "dlc", "frame_id", "is_extended", "length", "names",
+                 "padding", "specs")
+
+    def __init__(self, message: Message, layout: FrameLayout) -> None:
+        self.frame_id = message.frame_id
+        self.is_extended = message.is_extended_frame
+        self.dlc = message.length
+        self.length = layout.length
+        self.names = frozenset(s.name for s in layout.signals)
+        # encode pads unused bits (with the message's unused-bit pattern) on J1939 frames only
+        self.padding = layout.padding if message.protocol == "j1939" else 0
+        specs = []
+        for lay in layout.signals:
+            sig = message.get_signal_by_name(lay.name)
+            default = (sig.conversion.raw_to_scaled(sig.raw_initial, decode_choices=False)
+                       if sig.raw_initial is not None else None)
+            specs.append((lay.name, default,
+                          -_INF if lay.minimum is None else lay.minimum,
+                          _INF if lay.maximum is None else lay.maximum,
+                          lay.kind, lay.scale, lay.offset, lay.raw_min, lay.raw_max,
+                          lay.mask, lay.shift))
+        self.specs = tuple(specs)
+        by_name = {lay.name: lay for lay in layout.signals}
+        self.decode_specs = tuple(
+            (name, by_name[name].shift, by_name[name].mask,
+             by_name[name].raw_max if by_name[name].signed else -1,
+             by_name[name].kind == KIND_IDENTITY, by_name[name].scale, by_name[name].offset)
+            for name in layout.decode_order)
+
+    @classmethod
+    def build(cls, message: Message) -> _FastFrame | None:
+        layout = FrameLayout.build(message)
+        if layout is None or any(s.kind not in (KIND_IDENTITY, KIND_LINEAR)
+                                 for s in layout.signals):
+            return None
+        return cls(message, layout)
+
+    def encode(self, signals: Mapping[str, SignalValue], strict: bool) -> can.Message | None:
+        if not self.names.issuperset(signals):
+            return None
+        x = self.padding
+        for (name, default, lo, hi, kind, scale, offset, raw_lo, raw_hi, mask,
+             shift) in self.specs:
+            value = signals.get(name, default)
+            cls = value.__class__
+            if cls is float:
+                if not -_INF < value < _INF:
+                    return None
+            elif cls is not int and cls is not bool:
+                return None                   # missing, or not a plain number
+            if strict and (value < lo or value > hi):
+                return None
+            raw = round(value) if kind == KIND_IDENTITY else round((value - offset) / scale)
+            if raw < raw_lo or raw > raw_hi:
+                return None
+            x |= (raw & mask) << shift
+        return can.Message(arbitration_id=self.frame_id, is_extended_id=self.is_extended,
+                           data=x.to_bytes(self.length, "little"), dlc=self.dlc)
+
+    def decode(self, data: bytes | bytearray) -> dict[str, SignalValue] | None:
+        length = self.length
+        if len(data) < length:
+            return None                       # cantools raises: the caller's path reports it
+        x = int.from_bytes(data[:length], "little")
+        out: dict[str, SignalValue] = {}
+        for name, shift, mask, signed_max, identity, scale, offset in self.decode_specs:
+            raw = (x >> shift) & mask
+            if signed_max >= 0 and raw > signed_max:
+                raw -= mask + 1
+            out[name] = raw if identity else raw * scale + offset
+        return out
 
 
 def _label(sig: Signal) -> str:

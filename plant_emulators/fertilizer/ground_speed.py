@@ -222,7 +222,8 @@ class GroundSpeedModel:
         """Advance ``n`` steps of ``dt`` seconds (``dt`` fixed by the first call)."""
         if n < 0:
             raise ValueError(f"n must be >= 0, got {n}")
-        self._bind_dt(dt)
+        if dt != self._dt:          # first call (binds the step) or a changed step (raises)
+            self._bind_dt(dt)
         target = max(0.0, float(self.target_speed_mps))
         # One tuple unpacking instead of ~20 attribute lookups per call (order as declared).
         (slow, var_a, var_b, ws_a, ws_b, ts_a, ts_b, rn_a, rn_b, ws_mean, ts_mean,

@@ -372,7 +372,8 @@ class FertilizerPlant:
         """
         if n < 0:
             raise ValueError(f"n must be >= 0, got {n}")
-        self._bind_dt(dt)
+        if dt != self._dt:          # first call (binds the step) or a changed step (raises)
+            self._bind_dt(dt)
         if n == 0:
             return
         motor = self.config.motor

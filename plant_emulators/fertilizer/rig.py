@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from itertools import chain
 from pathlib import Path
 from typing import ClassVar
 
@@ -94,6 +95,18 @@ class FertilizerRig(Rig):
         self.dut_heartbeat_lost = False
         self.dut_status: dict[str, float] = {}
         self._passed = list(self.plant.sensor_passed_g)
+        #: (name, unit) of every traced signal, in :meth:`trace_row` order
+        self._trace_layout: tuple[tuple[str, str], ...] = (
+            ("target_flow_row_gps", "g/s"), ("command_v", "V"), ("motor_speed_rpm", "rpm"),
+            ("shaft_speed_rpm", "r/min"), ("motor_current_a", "A"),
+            ("ground_speed_mps", "m/s"), ("wheel_speed_mps", "m/s"),
+            ("analog_comm_error", "1"), ("delivered_total_g", "g"),
+            ("target_mass_total_g", "g"),
+            *((f"{name}_{row + 1}_{unit_name}", unit) for row in range(rows)
+              for name, unit_name, unit in (("flow_at_meter", "gps", "g/s"),
+                                            ("flow_at_sensor", "gps", "g/s"),
+                                            ("sensed_flow", "gps", "g/s"),
+                                            ("delivered", "g", "g"))))
 
     # --- physics ---------------------------------------------------------------------------
     def target_flow_row_gps(self) -> float:
@@ -115,17 +128,19 @@ class FertilizerRig(Rig):
         span = n * dt
         passed = self.plant.sensor_passed_g
         vibration = self.speed.vibration_rms_mps2
-        for row, sensor in enumerate(self.sensors):
+        for sensor, now, before in zip(self.sensors, passed, self._passed, strict=True):
             sensor.vibration_rms_mps2 = vibration
-            sensor.advance(n, dt, (passed[row] - self._passed[row]) / span)
-        self._passed = list(passed)
+            sensor.advance(n, dt, (now - before) / span)
+        self._passed = passed
         self.target_mass_g += target * span
         self.time_s += span
 
     # --- scenario --------------------------------------------------------------------------
     def set_input(self, name: str, value: float, time_s: float) -> None:
         t = self.terminal
-        if name == "terminal_mode":
+        if name == "ground_speed_mps":     # first: the runner sets it every trace period
+            self.speed.target_speed_mps = value
+        elif name == "terminal_mode":
             if value not in (MODE_FIELD, MODE_BENCH, MODE_CONSTANT):
                 raise ConfigError(f"terminal_mode must be 0, 1 or 2, got {value}", key=name)
             t.mode = int(value)
@@ -139,8 +154,6 @@ class FertilizerRig(Rig):
             t.width_m = value
         elif name == "speed_source":
             t.speed_source = int(value)
-        elif name == "ground_speed_mps":
-            self.speed.target_speed_mps = value
         else:
             raise ConfigError(f"unknown input {name!r}", key=name)
 
@@ -188,26 +201,22 @@ class FertilizerRig(Rig):
 
     # --- records -------------------------------------------------------------------------------
     def trace_signals(self) -> dict[str, tuple[float, str]]:
+        return {name: (value, unit) for (name, unit), value in
+                zip(self._trace_layout, self.trace_row(), strict=True)}
+
+    def trace_row(self) -> tuple[float, ...]:
+        """The traced values in :attr:`_trace_layout` order (what :meth:`trace_signals`
+        pairs with the names and units)."""
         self.watch(self.time_s)
         p = self.plant
-        out: dict[str, tuple[float, str]] = {
-            "target_flow_row_gps": (self.target_flow_row_gps(), "g/s"),
-            "command_v": (p.command_v, "V"),
-            "motor_speed_rpm": (p.motor_speed_rpm, "rpm"),
-            "shaft_speed_rpm": (p.shaft_speed_rpm, "r/min"),
-            "motor_current_a": (p.motor_current_a, "A"),
-            "ground_speed_mps": (self.speed.true_speed_mps, "m/s"),
-            "wheel_speed_mps": (self.speed.hall_report().wheel_speed_mps, "m/s"),
-            "analog_comm_error": (float(self.analog.comm_error), "1"),
-            "delivered_total_g": (sum(p.delivered_g), "g"),
-            "target_mass_total_g": (self.target_mass_g * self.rows, "g"),
-        }
-        for row in range(self.rows):
-            out[f"flow_at_meter_{row + 1}_gps"] = (p.flow_at_meter_gps[row], "g/s")
-            out[f"flow_at_sensor_{row + 1}_gps"] = (p.flow_at_sensor_gps[row], "g/s")
-            out[f"sensed_flow_{row + 1}_gps"] = (self.flow_modules[row].reported_flow_gps, "g/s")
-            out[f"delivered_{row + 1}_g"] = (p.delivered_g[row], "g")
-        return out
+        delivered = p.delivered_g
+        return (self.target_flow_row_gps(), p.command_v, p.motor_speed_rpm, p.shaft_speed_rpm,
+                p.motor_current_a, self.speed.true_speed_mps,
+                self.speed.hall_report().wheel_speed_mps, float(self.analog.comm_error),
+                sum(delivered), self.target_mass_g * self.rows,
+                *chain.from_iterable(zip(p.flow_at_meter_gps, p.flow_at_sensor_gps,
+                                         [m.reported_flow_gps for m in self.flow_modules],
+                                         delivered, strict=True)))
 
     def truth(self) -> dict[str, object]:
         p = self.plant

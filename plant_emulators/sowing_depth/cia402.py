@@ -208,8 +208,9 @@ class Cia402Drive:
         DriveObjectError
             If the drive does not own the object (abort code 0x06020000 / 0x06090011).
         """
-        self._spec_of(index, subindex)
         key = (index, subindex)
+        if key not in OBJECTS:
+            self._spec_of(index, subindex)          # raises the right abort code
         getter = _COMPUTED.get(key)
         if getter is not None:
             return getter(self)
@@ -270,7 +271,8 @@ class Cia402Drive:
                     f"[{lo_inc}, {hi_inc}] outside the stroke [0, "
                     f"{_inc(self.cylinder.stroke_mm)}] or empty", abort_code=0x06090030)
         self._od[key] = value
-        self._apply_parameters()
+        if key in _PARAMETER_KEYS:      # the target velocity, say, changes no parameter
+            self._apply_parameters()
 
     def owns(self, index: int, subindex: int = 0) -> bool:
         """True if ``index:subindex`` is one of the drive's objects (see :data:`OBJECTS`)."""
@@ -287,6 +289,8 @@ class Cia402Drive:
         return spec
 
     def _apply_parameters(self) -> None:
+        """Derive the working parameters from the objects in :data:`_PARAMETER_KEYS` (and the
+        cylinder's constants)."""
         od = self._od
         cyl = self.cylinder
         self._vmax = min(_mm(od[(0x607F, 0)]), cyl.rod_speed_max_mm_per_s)
@@ -676,6 +680,13 @@ def _current_permille(drive: Cia402Drive) -> int:
     cyl = drive.cylinder
     return clip_to_type(round(1000.0 * cyl.current_a / cyl.rated_current_a), "I16")
 
+
+#: the objects :meth:`Cia402Drive._apply_parameters` reads: writing any other object leaves
+#: the derived parameters as they are, so it is not re-run then (a test checks this set)
+_PARAMETER_KEYS = frozenset({
+    (0x607F, 0), (0x6081, 0), (0x6083, 0), (0x6084, 0), (0x6085, 0), (0x6065, 0), (0x6066, 0),
+    (0x6067, 0), (0x6068, 0), (0x606D, 0), (0x606E, 0), (0x606F, 0), (0x6070, 0), (0x607D, 1),
+    (0x607D, 2), (0x2002, 0), (0x6072, 0)})
 
 _COMPUTED = {
     (0x1001, 0): lambda d: d.error_register,

@@ -14,7 +14,7 @@ import canopen
 
 from hil.rig.canopen_device import CanopenDevice
 from hil.rig.device import PeriodicDevice
-from plant_emulators.sowing_depth.cia402 import DriveObjectError
+from plant_emulators.sowing_depth.cia402 import OBJECTS, DriveObjectError
 from plant_emulators.sowing_depth.frames import (
     DepthSetpoint,
     DrawWireFrame,
@@ -46,7 +46,8 @@ class ServoDriveDevice(CanopenDevice):
         self.node.add_write_callback(self._on_write)
 
     def _on_read(self, index: int, subindex: int, od: Any) -> int | None:
-        if self.drive.owns(index, subindex):
+        # drive.owns() inlined: every TPDO sample passes here
+        if (index, subindex) in OBJECTS:
             return int(self.drive.read(index, subindex))
         return None
 

@@ -2,7 +2,10 @@
 
 Each frame has a frozen dataclass; :class:`FrameCodec` turns one into a ``can.Message`` and back
 through cantools (strict range checks, unused bits sent as 1 as J1939 wants). Nothing here packs
-bytes by hand. Errors name the frame and the signal.
+bytes by hand: the hot path runs on layouts compiled at start-up from cantools' own message and
+signal definitions (:mod:`hil.rig.fastcodec`), with cantools' checks and value tables, and hands
+anything it does not cover (and every error) to cantools' ``encode``/``decode``. Errors name the
+frame and the signal.
 
 Example
 -------
@@ -17,6 +20,7 @@ GroundSpeed(speed_mps=1.111, distance_m=25.0, direction='forward')
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib import resources
@@ -28,6 +32,7 @@ import cantools
 from cantools.database.errors import DecodeError, EncodeError
 
 from hil.errors import FrameError
+from hil.rig.fastcodec import KIND_IDENTITY, KIND_LINEAR, FrameLayout
 
 __all__ = [
     "DBC_PATH",
@@ -157,13 +162,12 @@ class FrameCodec:
 
     def __init__(self, dbc_path: str | Path | None = None) -> None:
         path = DBC_PATH if dbc_path is None else Path(dbc_path)
-        try:
-            self.db = cantools.database.load_file(str(path), strict=True)
-        except (OSError, cantools.database.UnsupportedDatabaseFormatError) as exc:
-            raise FrameError(f"{path}: cannot load the DBC: {exc}") from exc
+        self.db, self._fast = _load(path)
         self._by_name = {cls.FRAME: cls for cls in _FRAME_TYPES}
         for cls in _FRAME_TYPES:
             self._message(cls.FRAME)   # every typed frame must be in the database
+        #: arbitration id → (message, compiled frame or None), as :meth:`decode_signals` found
+        self._decode_memo: dict[int, tuple[Any, _FastFrame | None]] = {}
 
     def _message(self, frame: str) -> Any:
         try:
@@ -184,6 +188,15 @@ class FrameCodec:
         FrameError
             Unknown frame, unknown or missing signal, value out of range or not a choice.
         """
+        fast = self._fast.get(frame)
+        if fast is not None:
+            msg = fast.encode(signals)
+            if msg is not None:
+                return msg
+        return self._encode_cantools(frame, signals)
+
+    def _encode_cantools(self, frame: str, signals: Mapping[str, Any]) -> can.Message:
+        """:meth:`encode_signals` through cantools: every check, every error message."""
         message = self._message(frame)
         known = {s.name for s in message.signals}
         unknown = sorted(set(signals) - known)
@@ -212,10 +225,23 @@ class FrameCodec:
 
     def decode_signals(self, msg: can.Message) -> tuple[str, dict[str, Any]]:
         """Decode ``msg`` into (frame name, signal values with choices as names)."""
-        try:
-            message = self.db.get_message_by_frame_id(msg.arbitration_id)
-        except KeyError as exc:
-            raise FrameError(f"unknown frame id 0x{msg.arbitration_id:X}") from exc
+        entry = self._decode_memo.get(msg.arbitration_id)
+        if entry is None:
+            try:
+                message = self.db.get_message_by_frame_id(msg.arbitration_id)
+            except KeyError as exc:
+                raise FrameError(f"unknown frame id 0x{msg.arbitration_id:X}") from exc
+            entry = self._decode_memo[msg.arbitration_id] = (message,
+                                                             self._fast.get(message.name))
+        message, fast = entry
+        if fast is not None and bool(msg.is_extended_id) == fast.is_extended:
+            values = fast.decode(msg.data)
+            if values is not None:
+                return message.name, values
+        return self._decode_cantools(message, msg)
+
+    def _decode_cantools(self, message: Any, msg: can.Message) -> tuple[str, dict[str, Any]]:
+        """:meth:`decode_signals` through cantools."""
         if bool(msg.is_extended_id) != bool(message.is_extended_frame):
             raise FrameError(f"frame {message.name!r}: identifier format does not match the DBC")
         try:
@@ -247,8 +273,141 @@ class FrameCodec:
         cls = self._by_name.get(name)
         if cls is None:
             raise FrameError(f"frame {name!r} has no typed codec")
-        kwargs = {field.name: values[cls.SIGNALS[field.name]] for field in dataclasses.fields(cls)}
+        kwargs = {field: values[sig] for field, sig in _FIELD_SIGNALS[cls]}
         return cls(**kwargs)  # type: ignore[no-any-return]
+
+
+#: per typed frame: (dataclass field, DBC signal) in field order
+_FIELD_SIGNALS: dict[type[Any], tuple[tuple[str, str], ...]] = {
+    cls: tuple((f.name, cls.SIGNALS[f.name]) for f in dataclasses.fields(cls))
+    for cls in _FRAME_TYPES}
+
+_INF = math.inf
+
+#: parsed databases by (path, mtime, size): the rig and an in-process controller load the same
+#: DBC (tens of ms each with cantools' parser); the objects are only ever read
+_LOADED: dict[tuple[str, int, int], tuple[Any, dict[str, _FastFrame]]] = {}
+
+
+def _load(path: Path) -> tuple[Any, dict[str, _FastFrame]]:
+    """The parsed database at ``path`` and its compiled frames (cached while the file is
+    unchanged)."""
+    try:
+        st = path.stat()
+        key: tuple[str, int, int] | None = (str(path.resolve()), st.st_mtime_ns, st.st_size)
+    except OSError:
+        key = None
+    if key is not None and key in _LOADED:
+        return _LOADED[key]
+    try:
+        db = cantools.database.load_file(str(path), strict=True)
+    except (OSError, cantools.database.UnsupportedDatabaseFormatError) as exc:
+        raise FrameError(f"{path}: cannot load the DBC: {exc}") from exc
+    fast = {}
+    for message in db.messages:
+        frame = _FastFrame.build(message)
+        if frame is not None:
+            fast[message.name] = frame
+    if key is not None:
+        _LOADED[key] = (db, fast)
+    return db, fast
+
+
+class _FastFrame:
+    """One frame's :meth:`FrameCodec.encode_signals` and ``decode_signals`` on its compiled
+    layout, with cantools' strict rules: choice names through the value table, numbers inside
+    [min, max] widened by a millionth of the scale (raw values in the value table skip the range
+    check), unused bits sent as the message's unused-bit pattern. Both return ``None`` (the
+    caller then runs cantools) for anything else: unknown, missing or out-of-range signals,
+    unknown choice names, booleans, non-finite numbers, short payloads.
+    """
+
+    __slots__ = ("decode_specs", "frame_id", "is_extended", "length", "names", "padding",
+                 "specs")
+
+    def __init__(self, message: Any, layout: FrameLayout) -> None:
+        self.frame_id = message.frame_id
+        self.is_extended = bool(message.is_extended_frame)
+        self.length = layout.length
+        self.names = frozenset(s.name for s in layout.signals)
+        self.padding = layout.padding        # encode_signals always pads (padding=True)
+        specs = []
+        decode_specs = []
+        for lay in layout.signals:
+            sig = message.get_signal_by_name(lay.name)
+            tolerance = abs(sig.conversion.scale) * 1e-6
+            choices = lay.choices or {}
+            specs.append((lay.name,
+                          {str(text): raw for raw, text in choices.items()},   # name → raw
+                          frozenset(choices),
+                          -_INF if sig.minimum is None else sig.minimum - tolerance,
+                          _INF if sig.maximum is None else sig.maximum + tolerance,
+                          lay.kind, lay.scale, lay.offset, lay.raw_min, lay.raw_max,
+                          lay.mask, lay.shift))
+            decode_specs.append((lay.name, lay.shift, lay.mask,
+                                 lay.raw_max if lay.signed else -1,
+                                 {raw: str(text) for raw, text in choices.items()},
+                                 lay.kind == KIND_IDENTITY, lay.scale, lay.offset,
+                                 _decimals(sig.scale)))
+        self.specs = tuple(specs)
+        self.decode_specs = tuple(decode_specs)   # message.signals order, as the output is
+
+    @classmethod
+    def build(cls, message: Any) -> _FastFrame | None:
+        layout = FrameLayout.build(message)
+        if layout is None or any(s.kind not in (KIND_IDENTITY, KIND_LINEAR)
+                                 for s in layout.signals):
+            return None
+        return cls(message, layout)
+
+    def encode(self, signals: Mapping[str, Any]) -> can.Message | None:
+        if len(signals) != len(self.names) or not self.names.issuperset(signals):
+            return None
+        x = self.padding
+        for (name, by_name, table, lo, hi, kind, scale, offset, raw_lo, raw_hi, mask,
+             shift) in self.specs:
+            value = signals[name]
+            cls = value.__class__
+            if cls is str:
+                raw = by_name.get(value)
+                if raw is None:
+                    return None
+            else:
+                if cls is float:
+                    if not -_INF < value < _INF:
+                        return None
+                elif cls is not int:
+                    return None               # booleans, named values, other types
+                raw = round(value) if kind == KIND_IDENTITY \
+                    else round((value - offset) / scale)
+                if raw not in table and (value < lo or value > hi):
+                    return None
+            if raw < raw_lo or raw > raw_hi:
+                return None
+            x |= (raw & mask) << shift
+        return can.Message(arbitration_id=self.frame_id, is_extended_id=self.is_extended,
+                           data=x.to_bytes(self.length, "little"))
+
+    def decode(self, data: bytes | bytearray) -> dict[str, Any] | None:
+        length = self.length
+        if len(data) < length:
+            return None
+        x = int.from_bytes(data[:length], "little")
+        out: dict[str, Any] = {}
+        for (name, shift, mask, signed_max, names, identity, scale, offset,
+             places) in self.decode_specs:
+            raw = (x >> shift) & mask
+            if signed_max >= 0 and raw > signed_max:
+                raw -= mask + 1
+            text = names.get(raw)
+            if text is not None:
+                out[name] = text
+            elif identity:
+                out[name] = raw
+            else:
+                value = raw * scale + offset
+                out[name] = round(value, places) if value.__class__ is float else value
+        return out
 
 
 def _decimals(scale: float) -> int:

@@ -25,7 +25,11 @@ from plant_emulators.sowing_depth.frames import FrameCodec
 from plant_emulators.sowing_depth.gnss_serial import GnssSerialPort
 from plant_emulators.sowing_depth.nmea import GnssReceiver
 from plant_emulators.sowing_depth.physics import SowingDepthPlant
-from plant_emulators.sowing_depth.sensors import DrawWireSensor, Inclinometer
+from plant_emulators.sowing_depth.sensors import (
+    DrawWireSensor,
+    Inclinometer,
+    calibration_depth_mm,
+)
 
 EDS = Path(__file__).parent / "db" / "servo_cylinder_cia402.eds"
 #: GB/T 20865-2007: for a target of 30 mm or more the qualified band is target ± 10 mm
@@ -152,29 +156,29 @@ class SowingDepthRig(Rig):
         return frozenset({0x200 + node, 0x300 + node})
 
     # --- records ------------------------------------------------------------------------------
-    def trace_signals(self) -> dict[str, tuple[float, str]]:
-        from plant_emulators.sowing_depth.sensors import calibration_depth_mm
+    #: (name, unit) of every traced signal, in :meth:`trace_row` order
+    _TRACE_LAYOUT: ClassVar[tuple[tuple[str, str], ...]] = (
+        ("target_depth_mm", "mm"), ("mean_true_depth_mm", "mm"), ("sensed_depth_mm", "mm"),
+        ("rod_position_mm", "mm"), ("rod_velocity_mm_s", "mm/s"), ("rod_force_n", "N"),
+        ("motor_current_a", "A"), ("cover_soil_mm", "mm"), ("arm_angle_deg", "deg"),
+        ("machine_pitch_deg", "deg"), ("ground_speed_mps", "m/s"), ("distance_m", "m"),
+        ("drive_statusword", "1"), ("drive_error_code", "1"))
 
+    def trace_signals(self) -> dict[str, tuple[float, str]]:
+        return {name: (value, unit) for (name, unit), value in
+                zip(self._TRACE_LAYOUT, self.trace_row(), strict=True)}
+
+    def trace_row(self) -> tuple[float, ...]:
+        """The traced values in :attr:`_TRACE_LAYOUT` order (what :meth:`trace_signals`
+        pairs with the names and units)."""
         p = self.plant
         drive = p.drive
-        out: dict[str, tuple[float, str]] = {
-            "target_depth_mm": (self.terminal.target_depth_mm, "mm"),
-            "mean_true_depth_mm": (p.mean_true_depth_mm, "mm"),
-            "sensed_depth_mm": (calibration_depth_mm(self.incl_device.last_x_mv)
-                                if self.incl_device.last_x_mv else float("nan"), "mm"),
-            "rod_position_mm": (p.rod_position_mm, "mm"),
-            "rod_velocity_mm_s": (p.rod_velocity_mm_s, "mm/s"),
-            "rod_force_n": (p.rod_force_n, "N"),
-            "motor_current_a": (p.motor_current_a, "A"),
-            "cover_soil_mm": (p.cover_soil_mm, "mm"),
-            "arm_angle_deg": (p.arm_angle_deg, "deg"),
-            "machine_pitch_deg": (p.machine_pitch_deg, "deg"),
-            "ground_speed_mps": (p.ground_speed_mps, "m/s"),
-            "distance_m": (p.distance_m, "m"),
-            "drive_statusword": (float(drive.statusword), "1"),
-            "drive_error_code": (float(drive.error_code), "1"),
-        }
-        return out
+        last_x_mv = self.incl_device.last_x_mv
+        return (self.terminal.target_depth_mm, p.mean_true_depth_mm,
+                calibration_depth_mm(last_x_mv) if last_x_mv else float("nan"),
+                p.rod_position_mm, p.rod_velocity_mm_s, p.rod_force_n, p.motor_current_a,
+                p.cover_soil_mm, p.arm_angle_deg, p.machine_pitch_deg, p.ground_speed_mps,
+                p.distance_m, float(drive.statusword), float(drive.error_code))
 
     def truth_arrays(self) -> dict[str, np.ndarray]:
         """Every truth cell of the run (one per 10 mm of travel, per row)."""
