@@ -1,0 +1,71 @@
+"""The reference controllers by name, as the daemon and DUT profiles know them.
+
+=========================  ==============================================  ==============
+name                       what                                            control period
+=========================  ==============================================  ==============
+fertilizer-piecewise-pid   [F] piecewise PID, ``mode`` physical (default)  100 ms
+                           or paper-literal
+fertilizer-open-loop       [F] constant-speed baseline (feedforward only)  100 ms
+sowing-depth-fuzzy-pid     [D] fuzzy self-tuning PID, CiA 402 master       10 ms
+=========================  ==============================================  ==============
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+from hil.dut import Controller
+from reference_controllers.params import ParamError, ParamValue
+
+
+@dataclass(frozen=True)
+class ControllerKind:
+    name: str
+    description: str
+    period_s: float
+    make: Callable[[dict[str, ParamValue], bool], Controller]
+
+
+def _piecewise(params: dict[str, ParamValue], step_on_sync: bool) -> Controller:
+    from reference_controllers.fertilizer.adapter import FlowController
+
+    mode = str(params.pop("mode", "physical"))
+    if mode not in ("physical", "paper-literal"):
+        raise ParamError(f"parameter 'mode' must be physical or paper-literal, got {mode!r}")
+    return FlowController(mode, params, step_on_sync=step_on_sync)
+
+
+def _open_loop(params: dict[str, ParamValue], step_on_sync: bool) -> Controller:
+    from reference_controllers.fertilizer.adapter import OpenLoopFlowController
+
+    return OpenLoopFlowController(params=params, step_on_sync=step_on_sync)
+
+
+def _depth(params: dict[str, ParamValue], step_on_sync: bool) -> Controller:
+    from reference_controllers.sowing_depth.adapter import DepthController
+
+    return DepthController(params, step_on_sync=step_on_sync)
+
+
+CONTROLLERS: dict[str, ControllerKind] = {k.name: k for k in (
+    ControllerKind("fertilizer-piecewise-pid", "[F] piecewise PID (mode physical or "
+                   "paper-literal)", 0.1, _piecewise),
+    ControllerKind("fertilizer-open-loop", "[F] constant-speed baseline", 0.1, _open_loop),
+    ControllerKind("sowing-depth-fuzzy-pid", "[D] fuzzy self-tuning PID", 0.01, _depth),
+)}
+
+
+def make_controller(name: str, params: Mapping[str, ParamValue] | None = None, *,
+                    step_on_sync: bool = True) -> Controller:
+    """The controller called ``name`` with ``params``.
+
+    Raises
+    ------
+    ParamError
+        Unknown controller name, unknown parameter name, or a bad value (all named).
+    """
+    kind = CONTROLLERS.get(name)
+    if kind is None:
+        raise ParamError(f"unknown controller {name!r} (known: {', '.join(CONTROLLERS)})")
+    return kind.make(dict(params or {}), step_on_sync)

@@ -1,0 +1,251 @@
+"""[D]'s depth controller on CAN: the CiA 402 drive's master running the fuzzy PID.
+
+Section 2, "CAN adapter", of ``docs/reference-controllers.md``. Plain frames go through the
+rig's DBC (:class:`FrameCodec`), the drive's PDOs through canopen PDO maps read from its EDS
+(a :class:`canopen.RemoteNode` on an :class:`OutboxNetwork`, no bus of its own).
+
+* on the drive's heartbeat 0x702 showing anything but Operational: NMT start ``[0x01, 2]``;
+* once Operational: Modes of operation = 3 (profile velocity) through RPDO3, once (again
+  after the drive drops out of Operational);
+* each step (SYNC, or :meth:`on_tick` when free-running): RPDO2 (Controlword, Target velocity
+  in 0.01 mm/s) with the controlword of :mod:`.cia402_master` and the fuzzy PID's speed;
+* every 10th step (the first included): DepthControllerStatus and the heartbeat 0x701.
+
+Depth: the inclinometer's X voltage with status "ok", eq. 13 ``depth = -0.065·x + 270.35``,
+filtered ``d += 0.2·(depth - d)`` per frame (the first frame sets d). Enabled: the terminal
+says on + automatic and a ground speed >= ``min_speed_mps`` is known (GBSD or GNSS, see
+:mod:`.ground_speed`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import can
+import canopen
+
+from hil.dut import Controller
+from hil.errors import FrameError
+from hil.rig.canopen_device import OutboxNetwork
+from plant_emulators.sowing_depth.config import SowingDepthRigConfig, load_rig_config
+from plant_emulators.sowing_depth.frames import (
+    EDS_PATH,
+    ControllerStatus,
+    DepthSetpoint,
+    FrameCodec,
+    GroundSpeed,
+    InclinometerFrame,
+)
+from plant_emulators.sowing_depth.sensors import calibration_depth_mm
+from reference_controllers.params import ParamValue, field_names, override, split
+from reference_controllers.sowing_depth.cia402_master import (
+    MODE_PROFILE_VELOCITY,
+    is_fault,
+    is_operation_enabled,
+    next_controlword,
+)
+from reference_controllers.sowing_depth.fuzzy_pid import FuzzyPid, FuzzyPidParams
+from reference_controllers.sowing_depth.ground_speed import NmeaPort, SpeedSources
+
+SYNC_ID = 0x080
+NMT_OPERATIONAL = 0x05
+CONTROLLER_NODE_ID = 1
+DEPTH_FILTER = 0.2
+STATUS_EVERY = 10
+#: J1939 "not available" speeds decode above the signal's valid maximum
+MAX_VALID_SPEED_MPS = 64.255
+GNSS_PORT_ENV = "AGRIHIL_GNSS_PORT"
+
+
+@dataclass(frozen=True)
+class DepthAdapterParams:
+    """The adapter's own parameters: when a ground speed counts as known."""
+
+    min_speed_mps: float = 0.1
+    speed_timeout_s: float = 1.0
+
+
+def resolve_params(params: Mapping[str, ParamValue] | None) -> tuple[FuzzyPidParams,
+                                                                     DepthAdapterParams]:
+    """(core parameters, adapter parameters) from ``key=value`` pairs; unknown keys raise
+    :class:`~reference_controllers.params.ParamError` naming the key."""
+    adapter_values, core_values = split(dict(params or {}), field_names(DepthAdapterParams))
+    return override(FuzzyPidParams(), core_values), override(DepthAdapterParams(),
+                                                             adapter_values)
+
+
+class DepthController(Controller):
+    """The reference depth controller of [D] as an in-process controller.
+
+    Parameters
+    ----------
+    params : mapping, optional
+        Overrides of :class:`FuzzyPidParams` (presets ``kp0``, ``ki0``, ``kd0`` …) and of
+        :class:`DepthAdapterParams`.
+    step_on_sync : bool
+        Run a control step on each SYNC (lockstep); False: only :meth:`on_tick` steps.
+    **more_params
+        More parameters as keywords (how ``hil`` hands a profile's ``[parameters]`` to a
+        ``launch.inprocess`` class); unknown names raise
+        :class:`~reference_controllers.params.ParamError` naming them.
+    """
+
+    name = "sowing-depth-fuzzy-pid"
+
+    def __init__(self, params: Mapping[str, ParamValue] | None = None, *,
+                 step_on_sync: bool = True, rig_config: SowingDepthRigConfig | None = None,
+                 **more_params: ParamValue) -> None:
+        self.core_params, self.adapter_params = resolve_params({**(params or {}),
+                                                                **more_params})
+        self.core = FuzzyPid(self.core_params)
+        self.step_on_sync = step_on_sync
+        wiring = (rig_config or load_rig_config()).wiring
+        self.node_id = wiring.drive_node_id
+        self.codec = FrameCodec()
+        self.network = OutboxNetwork()
+        self.drive = canopen.RemoteNode(self.node_id, str(EDS_PATH))
+        self.network.add_node(self.drive)
+        self.drive.rpdo.read(from_od=True)
+        self.drive.tpdo.read(from_od=True)
+        self.ids = {"incl": wiring.inclinometer_frame_id,
+                    "setpoint": wiring.depth_setpoint_frame_id,
+                    "speed": wiring.ground_speed_frame_id}
+        self.speeds = SpeedSources(self.adapter_params.speed_timeout_s)
+        self.gnss: NmeaPort | None = None
+        self.drive_nmt: int | None = None
+        self.statusword = 0
+        self.last_controlword = 0
+        self.mode_sent = False
+        self.target_mm = 30.0
+        self.terminal_on = False
+        self.automatic = False
+        self.manual = False
+        self.depth_mm: float | None = None
+        self.depth_ok = False
+        self.steps = 0
+        self.speed_mm_s = 0.0
+        self.gains = (self.core_params.kp0, self.core_params.ki0, self.core_params.kd0)
+
+    # --- set-up ---------------------------------------------------------------------------
+    def configure(self, env: dict[str, str]) -> None:
+        """Open the GNSS serial port the rig names in ``AGRIHIL_GNSS_PORT``, if any."""
+        path = env.get(GNSS_PORT_ENV)
+        if path and self.gnss is None:
+            self.gnss = NmeaPort(path)
+
+    def on_start(self) -> list[can.Message]:
+        return [can.Message(arbitration_id=0x700 + CONTROLLER_NODE_ID, data=b"\x00",
+                            is_extended_id=False)]
+
+    def close(self) -> None:
+        if self.gnss is not None:
+            self.gnss.close()
+
+    @property
+    def now_s(self) -> float:
+        return self.steps * self.core_params.period_s
+
+    # --- frames in ----------------------------------------------------------------------------
+    def on_frame(self, msg: can.Message) -> list[can.Message]:
+        if msg.is_error_frame or msg.is_remote_frame:
+            return []
+        can_id = msg.arbitration_id
+        if msg.is_extended_id:
+            with contextlib.suppress(FrameError):   # an undecodable frame is ignored
+                self._take_plain(msg)
+            return []
+        if can_id == SYNC_ID:
+            return self.step() if self.step_on_sync else []
+        if can_id == 0x700 + self.node_id and msg.dlc >= 1:
+            self.drive_nmt = msg.data[0] & 0x7F
+            if self.drive_nmt != NMT_OPERATIONAL:
+                self.mode_sent = False
+                self.drive.nmt.send_command(0x01)     # NMT start [0x01, node]
+                return self.network.take()
+        elif can_id in (0x180 + self.node_id, 0x280 + self.node_id):
+            self.network.notify(can_id, bytes(msg.data), msg.timestamp)
+            pdo = 1 if can_id == 0x180 + self.node_id else 2
+            self.statusword = int(self.drive.tpdo[pdo]["Statusword"].raw)
+        return []
+
+    def _take_plain(self, msg: can.Message) -> None:
+        can_id = msg.arbitration_id
+        if can_id == self.ids["incl"]:
+            frame = self.codec.decode(msg)
+            assert isinstance(frame, InclinometerFrame)
+            self.depth_ok = frame.x_status == "ok"
+            if self.depth_ok:
+                depth = calibration_depth_mm(frame.x_mv)
+                self.depth_mm = depth if self.depth_mm is None else (
+                    self.depth_mm + DEPTH_FILTER * (depth - self.depth_mm))
+        elif can_id == self.ids["setpoint"]:
+            sp = self.codec.decode(msg)
+            assert isinstance(sp, DepthSetpoint)
+            self.target_mm = float(sp.target_depth_mm)
+            self.terminal_on = sp.enable == "on"
+            self.automatic = sp.mode == "automatic"
+            self.manual = sp.mode == "manual"
+        elif can_id == self.ids["speed"]:
+            gs = self.codec.decode(msg)
+            assert isinstance(gs, GroundSpeed)
+            value = float(gs.speed_mps)
+            self.speeds.update("gbsd", value if 0.0 <= value <= MAX_VALID_SPEED_MPS else None,
+                               self.now_s)
+
+    # --- the control step -----------------------------------------------------------------
+    def on_tick(self) -> list[can.Message]:
+        """One free-running control step (a daemon's timer, not SYNC)."""
+        return self.step()
+
+    def enabled(self) -> bool:
+        speed = self.speeds.speed(self.now_s)
+        return (self.terminal_on and self.automatic and speed is not None
+                and speed >= self.adapter_params.min_speed_mps)
+
+    def step(self) -> list[can.Message]:
+        """Run the fuzzy PID once and return the frames of this step."""
+        if self.gnss is not None:
+            for value in self.gnss.poll():
+                self.speeds.update("gnss", value, self.now_s)
+        if self.drive_nmt == NMT_OPERATIONAL and not self.mode_sent:
+            self.drive.rpdo[3]["Modes of operation"].raw = MODE_PROFILE_VELOCITY
+            self.drive.rpdo[3].transmit()
+            self.mode_sent = True
+        controlword = next_controlword(self.statusword, self.last_controlword)
+        self.last_controlword = controlword
+        valid = self.depth_mm is not None and is_operation_enabled(self.statusword)
+        enabled = self.enabled()
+        speed, kp, ki, kd = self.core.step(self.target_mm, self.depth_mm or 0.0, valid,
+                                           enabled)
+        self.speed_mm_s, self.gains = speed, (kp, ki, kd)
+        self.drive.rpdo[2]["Controlword"].raw = controlword
+        self.drive.rpdo[2]["Target velocity"].raw = round(speed * 100.0)
+        self.drive.rpdo[2].transmit()
+        out = self.network.take()
+        if self.steps % STATUS_EVERY == 0:
+            out.append(self._status(valid and enabled))
+            out.append(can.Message(arbitration_id=0x700 + CONTROLLER_NODE_ID,
+                                   data=bytes([NMT_OPERATIONAL]), is_extended_id=False))
+        self.steps += 1
+        return out
+
+    def _status(self, controlling: bool) -> can.Message:
+        if is_fault(self.statusword):
+            state = "fault"
+        elif self.manual:
+            state = "manual"
+        elif controlling:
+            state = "controlling"
+        elif is_operation_enabled(self.statusword):
+            state = "ready"
+        else:
+            state = "initialising"
+        depth = 0.0 if self.depth_mm is None else min(max(self.depth_mm, -100.0), 200.0)
+        return self.codec.encode(ControllerStatus(
+            measured_depth_mm=round(depth, 1), roller_position_command_mm=0.0, state=state,
+            sensor_fault=int(self.depth_mm is None or not self.depth_ok),
+            drive_fault=int(is_fault(self.statusword)),
+            speed_lost=int(self.speeds.speed(self.now_s) is None),
+            counter=(self.steps // STATUS_EVERY) % 16))
