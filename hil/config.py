@@ -38,8 +38,14 @@ from hil.errors import ConfigError
 T = TypeVar("T")
 
 
-def load_toml(path: str | Path, cls: type[T], *, section: str | None = None) -> T:
-    """Read ``path`` (optionally only its ``[section]``) into the frozen dataclass ``cls``."""
+def load_toml(path: str | Path, cls: type[T], *, section: str | None = None,
+              overrides: Mapping[str, Any] | None = None, source: str | None = None) -> T:
+    """Read ``path`` (optionally only its ``[section]``) into the frozen dataclass ``cls``.
+
+    ``overrides`` (nested tables, e.g. a DUT profile's ``[rig]``) replace the file's values
+    key by key before validation; errors then name ``source`` (where the overrides come from)
+    as well as the file.
+    """
     path = Path(path)
     try:
         with path.open("rb") as fh:
@@ -52,7 +58,22 @@ def load_toml(path: str | Path, cls: type[T], *, section: str | None = None) -> 
         if section not in data:
             raise ConfigError("missing section", path=str(path), key=section)
         data = data[section]
-    return from_mapping(cls, data, path=str(path), prefix=section or "")
+    label = str(path)
+    if overrides:
+        data = merge_tables(data, overrides)
+        label = f"{source or 'overrides'} (over {path.name})"
+    return from_mapping(cls, data, path=label, prefix=section or "")
+
+
+def merge_tables(base: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
+    """``base`` with ``overrides`` applied key by key (tables merge, other values replace)."""
+    out = dict(base)
+    for key, value in overrides.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
+            out[key] = merge_tables(out[key], value)
+        else:
+            out[key] = value
+    return out
 
 
 def from_mapping(cls: type[T], data: Mapping[str, Any], *, path: str | None = None,

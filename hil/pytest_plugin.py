@@ -178,6 +178,9 @@ class QualificationSession:
         result = run_scenario(rig_cls, scenario, dut, RunOptions(
             out_dir=out_dir, clock=self.clock, bus=bus, seed=seed_used,
             step_timeout_s=step_timeout_s,
+            # the rig is wired as the DUT under qualification says (a baseline run too)
+            rig_config=dict(self.profile.rig_config),
+            rig_config_source=str(self.profile.path or ""),
             extra_meta={"dut_identity": profile.identity(), "dut_build": build,
                         "test": nodeid}))
         self.runs[key] = _RunEntry(result, rel, scenario.name)

@@ -78,10 +78,12 @@ def _run(args: argparse.Namespace) -> int:
     scenario = rig_cls.load_scenario(args.scenario)
     out = Path(args.out or f"runs/{scenario.name}")
     extra: dict[str, object] = {}
+    rig_config: dict[str, object] = {}
     dut: DutRunner
     if profile is not None:
         dut, build = make_dut(profile, bus=args.bus, clock=args.clock, log_dir=out)
         extra = {"dut_identity": profile.identity(), "dut_build": build}
+        rig_config = dict(profile.rig_config)
     else:
         dut = _builtin_dut(rig_cls, args.dut)
     print(f"hil: running {rig_cls.name}/{scenario.name} ({scenario.duration_s:g} s, "
@@ -89,6 +91,8 @@ def _run(args: argparse.Namespace) -> int:
     result = run_scenario(rig_cls, scenario, dut,
                           RunOptions(out_dir=out, clock=args.clock, bus=args.bus, seed=args.seed,
                                      csv=args.csv, step_timeout_s=args.step_timeout,
+                                     rig_config=rig_config,
+                                     rig_config_source=str(profile.path if profile else ""),
                                      extra_meta=extra))
     if args.plot:
         from hil.plot import plot_traces

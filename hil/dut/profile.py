@@ -15,6 +15,9 @@ profile never starts a run. Layout (``dut_profiles/<rig>-<controller>-<kind>.tom
     [timing]      control_period_ms, heartbeat_period_ms, max_frames_per_period
     [parameters]  name = number | string | bool, handed to the controller
     [limits]      "measurement.name" = { low = …, high = … }
+    [rig]         overrides of the rig's packaged config for this DUT's installation, e.g.
+                  ``flow_sensor = { mode = "sliding" }``: checked by the rig's own loader,
+                  applied to every run of this DUT (and recorded in each run's record)
 
 In ``launch.command`` and ``build.command`` these placeholders are expanded: ``{python}``
 (this interpreter), ``{root}`` (the project root), ``{profile_dir}``, ``{build_dir}`` (the
@@ -29,7 +32,7 @@ import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 from hil.config import check_positive, from_mapping
 from hil.errors import ConfigError
@@ -155,6 +158,9 @@ class DutProfile:
     build: Build | None = None
     parameters: dict[str, float | int | bool | str] = field(default_factory=dict)
     limits: dict[str, Limit] = field(default_factory=dict)
+    #: ``[rig]``: overrides of the rig's packaged config for this DUT's wiring (e.g. which
+    #: flow-sensor modules it is wired to), checked by the rig's own config loader
+    rig_config: dict[str, Any] = field(default_factory=dict)
     #: set by :func:`load_profile`
     path: Path | None = None
     sha256: str = ""
@@ -186,15 +192,29 @@ def load_profile(path: str | Path) -> DutProfile:
         data = tomllib.loads(raw.decode("utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ConfigError(f"not valid TOML: {exc}", path=str(path)) from exc
-    for reserved in ("path", "sha256"):
+    for reserved in ("path", "sha256", "rig_config"):
         if reserved in data:
             raise ConfigError("unknown key", path=str(path), key=reserved)
+    rig_config = data.pop("rig", {})
+    if not isinstance(rig_config, dict):
+        raise ConfigError("expected a table of rig config overrides", path=str(path), key="rig")
     profile = from_mapping(DutProfile, data, path=str(path))
     _check(profile, str(path))
+    _check_rig_config(profile.dut.rig, rig_config, str(path))
     return DutProfile(dut=profile.dut, wiring=profile.wiring, timing=profile.timing,
                       launch=profile.launch, build=profile.build,
-                      parameters=profile.parameters, limits=profile.limits, path=path,
+                      parameters=profile.parameters, limits=profile.limits,
+                      rig_config=rig_config, path=path,
                       sha256=hashlib.sha256(raw).hexdigest())
+
+
+def _check_rig_config(rig: str, overrides: dict[str, Any], path: str) -> None:
+    """The ``[rig]`` overrides must make a valid config of that rig (named in errors)."""
+    if not overrides:
+        return
+    from hil.rig.registry import load_rig
+
+    load_rig(rig).load_config(overrides, source=path)
 
 
 def _check(profile: DutProfile, path: str) -> None:

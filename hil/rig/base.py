@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import can
 import numpy as np
@@ -24,6 +24,10 @@ class RigContext:
     rng: np.random.Generator
     #: record a notable thing that happened (fault injected, DUT heartbeat lost …)
     note: Callable[[float, str, str], None] = field(default=lambda t, kind, detail: None)
+    #: overrides of the rig's packaged config (a DUT profile's ``[rig]`` table)
+    config_overrides: Mapping[str, Any] = field(default_factory=dict)
+    #: where those overrides come from (named in config errors)
+    config_source: str = ""
 
 
 class Rig(ABC):
@@ -45,6 +49,17 @@ class Rig(ABC):
     def __init__(self, ctx: RigContext) -> None:
         self.ctx = ctx
         self.devices: list[Device] = []
+
+    @classmethod
+    def load_config(cls, overrides: Mapping[str, Any] | None = None, *,
+                    source: str = "") -> object:
+        """The rig's packaged config with ``overrides`` applied, validated (a
+        :class:`ConfigError` names ``source`` and the key). Rigs without a config accept
+        no overrides."""
+        if overrides:
+            raise ConfigError(f"the {cls.name} rig takes no config overrides", path=source,
+                              key="rig")
+        return None
 
     # --- what subclasses provide ------------------------------------------------------
     @abstractmethod

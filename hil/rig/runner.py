@@ -43,6 +43,9 @@ class RunOptions:
     seed: int | None = None
     step_timeout_s: float = 2.0
     csv: bool = False
+    #: overrides of the rig's packaged config (a DUT profile's ``[rig]``), and their source
+    rig_config: dict[str, Any] = field(default_factory=dict)
+    rig_config_source: str = ""
     extra_meta: dict[str, Any] = field(default_factory=dict)
 
 
@@ -250,7 +253,11 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
         rec.meta["bus"] = spec
         ctx = RigContext(seed=seed, rng=np.random.default_rng(seed),
                          note=lambda t, kind, detail: notes.append(
-                             {"t": round(t, 6), "kind": kind, "detail": detail}))
+                             {"t": round(t, 6), "kind": kind, "detail": detail}),
+                         config_overrides=options.rig_config,
+                         config_source=options.rig_config_source)
+        if options.rig_config:
+            rec.meta["rig_config_overrides"] = options.rig_config
         rig = rig_cls(ctx)
         stack.callback(rig.close)
         dut_env = rig.dut_environment()

@@ -19,9 +19,10 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 from hil.config import check_fraction as _fraction
 from hil.config import check_non_negative as _non_negative
@@ -278,6 +279,10 @@ class GroundSpeedConfig:
     radar_bias_frac: float
     radar_noise_sd_frac: float
     radar_noise_time_s: float
+    #: field distance calibration of the Hall node: it counts the nominal arc / (1 - this) of
+    #: ground per pulse, as set by a calibration drive over a measured distance (it absorbs
+    #: the mean ground-wheel skid); 0: uncalibrated
+    hall_calibration_frac: float = 0.0
 
     def __post_init__(self) -> None:
         _positive(self, "speed_time_constant_s", "max_accel_mps2", "speed_variation_time_s",
@@ -288,6 +293,8 @@ class GroundSpeedConfig:
                       "pulse_spacing_error_sd_frac", "wheel_slip_sd_frac",
                       "tractor_slip_sd_frac", "radar_noise_sd_frac")
         _fraction(self, "wheel_slip_mean_frac", "tractor_slip_mean_frac")
+        if not 0.0 <= self.hall_calibration_frac < 0.2:
+            raise ValueError("hall_calibration_frac must be within [0, 0.2)")
         if not -0.2 < self.radar_bias_frac < 0.2:
             raise ValueError("radar_bias_frac must be within ±0.2")
         if self.pulse_spacing_error_sd_frac >= 0.2:
@@ -297,6 +304,11 @@ class GroundSpeedConfig:
     def metres_per_pulse(self) -> float:
         """Ground-wheel arc between two Hall pulses (m)."""
         return math.pi * self.wheel_diameter_m / self.pulses_per_rev
+
+    @property
+    def reported_metres_per_pulse(self) -> float:
+        """Ground distance per pulse the Hall node counts (its calibrated value, m)."""
+        return self.metres_per_pulse / (1.0 - self.hall_calibration_frac)
 
 
 @dataclass(frozen=True)
@@ -376,7 +388,9 @@ class FertilizerRigConfig:
                 f"entries for {self.meter.rows} meter rows")
 
 
-def load_rig_config(path: str | Path | None = None) -> FertilizerRigConfig:
+def load_rig_config(path: str | Path | None = None, *,
+                    overrides: Mapping[str, Any] | None = None,
+                    source: str = "") -> FertilizerRigConfig:
     """Load a fertilizer rig configuration.
 
     Parameters
@@ -384,6 +398,9 @@ def load_rig_config(path: str | Path | None = None) -> FertilizerRigConfig:
     path : str or Path, optional
         A TOML file with the sections of :class:`FertilizerRigConfig`. Defaults to the
         packaged ``rig.toml``.
+    overrides : mapping, optional
+        Nested tables that replace the file's values (a DUT profile's ``[rig]``); ``source``
+        names where they come from in errors.
 
     Returns
     -------
@@ -397,7 +414,7 @@ def load_rig_config(path: str | Path | None = None) -> FertilizerRigConfig:
         When the file is missing or invalid; the message names the file and the key.
     """
     path = Path(path) if path is not None else DEFAULT_RIG_TOML
-    cfg = load_toml(path, FertilizerRigConfig)
+    cfg = load_toml(path, FertilizerRigConfig, overrides=overrides, source=source)
     base = path.resolve().parent
     wiring = dataclasses.replace(
         cfg.wiring,

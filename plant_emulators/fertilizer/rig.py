@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from itertools import chain
 from pathlib import Path
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import can
 
@@ -59,9 +59,15 @@ class FertilizerRig(Rig):
         ("ground speed [m/s]", ["ground_speed_mps", "wheel_speed_mps"]),
     ]
 
+    @classmethod
+    def load_config(cls, overrides: Mapping[str, Any] | None = None, *,
+                    source: str = "") -> FertilizerRigConfig:
+        return load_rig_config(overrides=overrides, source=source)
+
     def __init__(self, ctx: RigContext, config: FertilizerRigConfig | None = None) -> None:
         super().__init__(ctx)
-        cfg = config or load_rig_config()
+        cfg = config or load_rig_config(overrides=ctx.config_overrides,
+                                        source=ctx.config_source)
         self.config = cfg
         self.db = FertilizerDatabase.from_config(cfg)
         wiring = cfg.wiring

@@ -16,10 +16,11 @@ Example
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 from hil.config import check_non_negative as _non_negative
 from hil.config import check_positive as _positive
@@ -448,7 +449,9 @@ def default_rig_path() -> Path:
     return Path(str(resources.files(__package__).joinpath("rig.toml")))
 
 
-def load_rig_config(path: str | Path | None = None) -> SowingDepthRigConfig:
+def load_rig_config(path: str | Path | None = None, *,
+                    overrides: Mapping[str, Any] | None = None,
+                    source: str = "") -> SowingDepthRigConfig:
     """Load a sowing-depth rig config (the packaged ``rig.toml`` when ``path`` is None).
 
     Parameters
@@ -466,4 +469,5 @@ def load_rig_config(path: str | Path | None = None) -> SowingDepthRigConfig:
         On a missing file, invalid TOML, an unknown or missing key, a wrong type or an
         out-of-range value; the message names the file and the key.
     """
-    return load_toml(default_rig_path() if path is None else path, SowingDepthRigConfig)
+    return load_toml(default_rig_path() if path is None else path, SowingDepthRigConfig,
+                     overrides=overrides, source=source)

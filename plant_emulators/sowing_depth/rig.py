@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import can
 import numpy as np
@@ -65,9 +65,15 @@ class SowingDepthRig(Rig):
         ("ground speed [m/s]", ["ground_speed_mps"]),
     ]
 
+    @classmethod
+    def load_config(cls, overrides: Mapping[str, Any] | None = None, *,
+                    source: str = "") -> SowingDepthRigConfig:
+        return load_rig_config(overrides=overrides, source=source)
+
     def __init__(self, ctx: RigContext, config: SowingDepthRigConfig | None = None) -> None:
         super().__init__(ctx)
-        cfg = config or load_rig_config()
+        cfg = config or load_rig_config(overrides=ctx.config_overrides,
+                                        source=ctx.config_source)
         self.config = cfg
         wiring = cfg.wiring
         self.control_period_s = wiring.sync_period_ms / 1000.0
