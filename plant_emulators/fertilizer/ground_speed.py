@@ -330,7 +330,7 @@ class GroundSpeedModel:
         period = span / count
         # A wheel that is slowing down: the time since the last pulse bounds the speed.
         period = max(period, now - last)
-        return HallReport(cfg.metres_per_pulse / period, self._pulses, last_period, True)
+        return HallReport(cfg.reported_metres_per_pulse / period, self._pulses, last_period, True)
 
     def wheel_based_report(self) -> TractorSpeedReport:
         """PGN 65096 content: wheel-based machine speed and distance."""
