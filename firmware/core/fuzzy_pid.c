@@ -42,8 +42,8 @@ void fpid_defaults(fpid_params_t *p)
 {
     /* preset gains are not published in [D]: the Python build's defaults (tuned on the
      * emulator); DUT profiles pass their own */
-    p->kp0 = 1.5;
-    p->ki0 = 1.0;
+    p->kp0 = 3.0;
+    p->ki0 = 0.1;
     p->kd0 = 0.0;
     p->ke = 0.03;  /* Table 2: [-200, 200] mm -> [-6, 6] */
     p->kec = 0.12; /* [-50, 50] mm/s -> [-6, 6] */

@@ -15,6 +15,8 @@ void ppid_defaults(ppid_params_t *p, ppid_law_t law)
     p->km = 0.1;
     p->v_max = 10.0;
     p->c_max = 0.5;
+    p->ki_first = 0.8;        /* the first clean report sets most of the meter factor */
+    p->settle_periods = 17.0; /* 1.7 s: the sensed flow settles ~1.5 s after a step */
     p->ff_coeff = 4.586; /* the emulated meter's nominal map (plant_emulators/fertilizer/rig.toml) */
     p->ff_exponent = 0.6537;
     p->shaft_rpm_per_v = 6.0;    /* 10 V -> 3,000 motor r/min -> 60 shaft r/min */
@@ -30,13 +32,13 @@ void ppid_defaults(ppid_params_t *p, ppid_law_t law)
         p->e2 = 5.0;
     } else {
         /* physical (open loop uses none of these): thresholds relative to the target; gains
-         * tuned on the emulator with the block sensor (scripts/tune_piecewise_pid.py), the
-         * Python build's defaults */
-        p->kp1 = 0.0;
-        p->kp2 = 0.0;
+         * tuned on the emulator with the sliding-window sensor (scripts/tune_piecewise_pid.py),
+         * the Python build's defaults */
+        p->kp1 = 0.4;
+        p->kp2 = 0.4;
         p->kp3 = 0.0;
-        p->ki1 = 0.8;
-        p->ki2 = 0.8;
+        p->ki1 = 0.04;
+        p->ki2 = 0.04;
         p->kd = 0.0;
         p->e1 = 0.02;
         p->e2 = 0.10;
@@ -61,6 +63,8 @@ size_t ppid_param_refs(ppid_params_t *p, param_ref_t refs[PPID_PARAM_COUNT])
         {"e2", &p->e2},
         {"km", &p->km},
         {"c_max", &p->c_max},
+        {"settle_periods", &p->settle_periods},
+        {"ki_first", &p->ki_first},
     };
     size_t n = p->law == PPID_LAW_OPEN_LOOP ? 4 : PPID_PARAM_COUNT;
     memcpy(refs, table, n * sizeof table[0]);
@@ -141,7 +145,8 @@ static void update_paper_literal(const ppid_params_t *p, ppid_state_t *s, double
     s->e_prev = e;
 }
 
-static void update_physical(const ppid_params_t *p, ppid_state_t *s, double r)
+/* No integration towards a limit the command already sits at (anti-windup). */
+static void update_physical(const ppid_params_t *p, ppid_state_t *s, double r, bool saturated)
 {
     if (!s->primed) {
         s->r_prev = r;
@@ -149,7 +154,13 @@ static void update_physical(const ppid_params_t *p, ppid_state_t *s, double r)
     }
     double kp, ki;
     s->segment = select_segment(p, fabs(r), &kp, &ki);
-    s->integral = clamp(s->integral + ki * r, -p->c_max, p->c_max);
+    if (!(saturated && r > 0.0)) {
+        if (!s->learnt) { /* the first clean report: learn the meter factor */
+            ki = p->ki_first;
+        }
+        s->integral = clamp(s->integral + ki * r, -p->c_max, p->c_max);
+        s->learnt = true;
+    }
     s->correction = clamp(kp * r + s->integral + p->kd * (r - s->r_prev), -p->c_max, p->c_max);
     s->r_prev = r;
 }
@@ -174,12 +185,25 @@ ppid_output_t ppid_step(const ppid_params_t *p, ppid_state_t *s, double target_g
         out.volts = p->km * s->u;
         break;
     case PPID_LAW_PHYSICAL:
-    default:
-        if (update) {
-            update_physical(p, s, (target_gps - measured_gps) / target_gps);
+    default: {
+        if (fabs(target_gps - s->target_prev) > p->e2 * s->target_prev) {
+            /* a jump (also the first step after a reset): the sensors' windows still hold the
+             * old flow; keep only the integral (P and D were about the old target) and wait */
+            s->since_jump = 0;
+            s->primed = false;
+            s->correction = s->integral;
+        } else if (s->since_jump < UINT32_MAX) {
+            s->since_jump++;
         }
-        out.volts = clamp(ppid_feedforward(p, target_gps) * (1.0 + s->correction), 0.0, p->v_max);
+        s->target_prev = target_gps;
+        double ff = ppid_feedforward(p, target_gps);
+        if (update && (double)s->since_jump >= p->settle_periods) {
+            update_physical(p, s, (target_gps - measured_gps) / target_gps,
+                            ff * (1.0 + s->correction) >= p->v_max);
+        }
+        out.volts = clamp(ff * (1.0 + s->correction), 0.0, p->v_max);
         break;
+    }
     }
     out.segment = s->segment;
     return out;

@@ -37,6 +37,8 @@ typedef struct {
     double km;            /* paper-literal: volts per controller unit ([F]'s G1 = Km) */
     double v_max;         /* analog output limit, V */
     double c_max;         /* physical: limit of the correction multiplier and of I */
+    double settle_periods; /* physical: periods after a target jump whose reports are ignored */
+    double ki_first;       /* physical: integral gain of the first update after a reset */
     double ff_coeff;        /* meter's nominal map q = ff_coeff * n^ff_exponent */
     double ff_exponent;     /* (g/s per row, n shaft r/min) */
     double shaft_rpm_per_v; /* drive scaling: shaft r/min per volt (10 V -> 60 r/min: 6) */
@@ -50,6 +52,9 @@ typedef struct {
     double integral;   /* physical: I */
     double correction; /* physical: c, held between updates */
     double r_prev;     /* physical: r(k-1) */
+    double target_prev; /* physical: the target of the previous step */
+    uint32_t since_jump; /* physical: steps since the last target jump */
+    bool learnt;         /* physical: the integral has had its first update */
     uint8_t segment;   /* segment of the last update */
 } ppid_state_t;
 
@@ -58,14 +63,14 @@ typedef struct {
     uint8_t segment;
 } ppid_output_t;
 
-#define PPID_PARAM_COUNT 14
+#define PPID_PARAM_COUNT 16
 
 /* Defaults of docs/reference-controllers.md for `law` (thresholds and gains differ per law). */
 void ppid_defaults(ppid_params_t *p, ppid_law_t law);
 
 /* Fill `refs` with the named parameters of `p`; returns the count (at most PPID_PARAM_COUNT).
- * Names (those of the Python build): kp1 kp2 kp3 ki1 ki2 kd e1 e2 km c_max ff_coeff
- * ff_exponent shaft_rpm_per_v v_max; the open-loop law has only the feedforward ones
+ * Names (those of the Python build): kp1 kp2 kp3 ki1 ki2 kd e1 e2 km c_max settle_periods
+ * ki_first ff_coeff ff_exponent shaft_rpm_per_v v_max; the open-loop law has only the feedforward ones
  * (ff_coeff ff_exponent shaft_rpm_per_v v_max). */
 size_t ppid_param_refs(ppid_params_t *p, param_ref_t refs[PPID_PARAM_COUNT]);
 

@@ -74,6 +74,7 @@ static void start(ppid_law_t law)
 {
     fert_config_t cfg;
     fert_config_defaults(&cfg, law);
+    cfg.core.settle_periods = 0.0; /* these tests look at the adapter, not the settle gate */
     fert_init(&a, &cfg);
 }
 

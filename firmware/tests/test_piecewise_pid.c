@@ -127,8 +127,9 @@ static void test_segment_boundaries(void)
         ppid_output_t o = ppid_step(&p, &s, 10.0, cases[i].measured, true, true);
         CHECK_INT(o.segment, cases[i].segment);
     }
-    /* physical: the same on r = e / Q with e1 = 2 %, e2 = 10 % */
+    /* physical: the same on r = e / Q with e1 = 2 %, e2 = 10 % (no settle: update at once) */
     p = easy(PPID_LAW_PHYSICAL);
+    p.settle_periods = 0.0;
     struct {
         double measured;
         int segment;
@@ -150,38 +151,64 @@ static void test_physical_sequence(void)
     p.ki2 = 0.125;
     p.kp3 = 2.0;
     p.kd = 0.5;
+    p.settle_periods = 1.0;
+    p.ki_first = 0.5;
     ppid_state_t s;
     ppid_reset(&s);
-    /* no measurement yet: feedforward alone */
+    /* target 0 -> 8 is a jump: no update on this step; feedforward alone */
     ppid_output_t o = ppid_step(&p, &s, 8.0, 0.0, false, false);
     CHECK_NEAR(o.volts, 2.0, TOL);
     CHECK_INT(o.segment, 0);
-    /* r = 0.01, fine: I = 0.0025, c = 0.005 + 0.0025 = 0.0075 */
+    /* one period later, r = 0.01, fine, first update learns with ki_first:
+     * I = 0.005, c = 0.005 + 0.005 = 0.01 */
     o = ppid_step(&p, &s, 8.0, 7.92, true, true);
-    CHECK_NEAR(o.volts, 2.015, TOL);
+    CHECK_NEAR(o.volts, 2.02, TOL);
     CHECK_INT(o.segment, 1);
-    /* held c, new target acts through the feedforward at once: 3.125 * 1.0075 */
+    /* 8 -> 10 is a jump (> e2 of 8): c falls back to I, the feedforward acts at once */
     o = ppid_step(&p, &s, 10.0, 0.0, true, false);
-    CHECK_NEAR(o.volts, 3.1484375, TOL);
+    CHECK_NEAR(o.volts, 3.125 * 1.005, TOL);
     CHECK_INT(o.segment, 1);
-    /* r = 0.1, coarse (Ki = 0): c = 0.2 + 0.0025 + 0.5 (0.1 - 0.01) = 0.2475 */
+    /* r = 0.1, coarse (Ki = 0), first update after the jump (no D kick): c = 0.2 + 0.005 */
     o = ppid_step(&p, &s, 10.0, 9.0, true, true);
-    CHECK_NEAR(o.volts, 3.8984375, TOL);
+    CHECK_NEAR(o.volts, 3.765625, TOL);
     CHECK_INT(o.segment, 3);
-    /* r = 0.5: c = 1 + 0.0025 + 0.2 clamps at c_max = 0.5 */
+    /* r = 0.5: c = 1 + 0.005 + 0.2 clamps at c_max = 0.5 */
     o = ppid_step(&p, &s, 10.0, 5.0, true, true);
     CHECK_NEAR(o.volts, 4.6875, TOL);
     CHECK_INT(o.segment, 3);
-    /* r = -0.05, medium: I = 0.0025 - 0.00625, c = -0.05 - 0.00375 + 0.5 (-0.55) */
+    /* r = -0.05, medium: I = 0.005 - 0.00625, c = -0.05 - 0.00125 + 0.5 (-0.55) */
     o = ppid_step(&p, &s, 10.0, 10.5, true, true);
-    CHECK_NEAR(o.volts, 3.125 * (1.0 - 0.32875), TOL);
+    CHECK_NEAR(o.volts, 3.125 * (1.0 - 0.32625), TOL);
     CHECK_INT(o.segment, 2);
-    /* target 0 resets: the next update has no derivative kick again */
+    /* target 0 resets; 0 -> 10 is a jump: the report of this step is ignored */
     o = ppid_step(&p, &s, 0.0, 10.5, true, true);
     CHECK_NEAR(o.volts, 0.0, 0);
     CHECK_INT(o.segment, 0);
-    o = ppid_step(&p, &s, 10.0, 9.9, true, true); /* r = 0.01: c = 0.005 + 0.0025 */
-    CHECK_NEAR(o.volts, 3.125 * 1.0075, TOL);
+    o = ppid_step(&p, &s, 10.0, 9.9, true, true);
+    CHECK_NEAR(o.volts, 3.125, TOL);
+    CHECK_INT(o.segment, 0);
+    o = ppid_step(&p, &s, 10.0, 9.9, true, true); /* r = 0.01: c = 0.005 + 0.005 */
+    CHECK_NEAR(o.volts, 3.125 * 1.01, TOL);
+}
+
+static void test_physical_settle_gate(void)
+{
+    ppid_params_t p = easy(PPID_LAW_PHYSICAL);
+    p.kp1 = 0.5;
+    p.settle_periods = 3.0;
+    ppid_state_t s;
+    ppid_reset(&s);
+    /* reports during the 3 periods after the jump hold the old flow: ignored */
+    for (int k = 0; k < 3; k++) {
+        ppid_output_t o = ppid_step(&p, &s, 8.0, 7.92, true, true);
+        CHECK_NEAR(o.volts, 2.0, TOL);
+    }
+    /* from the 3rd period on they count: r = 0.01, c = 0.005 + ki_first * 0.01 */
+    ppid_output_t o = ppid_step(&p, &s, 8.0, 7.92, true, true);
+    CHECK_NEAR(o.volts, 2.0 * (1.0 + 0.005 + p.ki_first * 0.01), TOL);
+    /* a slow change (<= e2 per period) is no jump: updates go on */
+    o = ppid_step(&p, &s, 8.4, 8.4, true, true);
+    CHECK(o.segment == PPID_SEG_FINE);
 }
 
 static void test_physical_integral_clamp(void)
@@ -189,14 +216,19 @@ static void test_physical_integral_clamp(void)
     ppid_params_t p = easy(PPID_LAW_PHYSICAL);
     p.kp1 = 0.5;
     p.ki1 = 100.0;
+    p.ki_first = 1.0;
     p.kd = 0.0;
+    p.settle_periods = 0.0;
     ppid_state_t s;
     ppid_reset(&s);
-    /* r = 0.01: I = 1 clamps to 0.5; c = 0.005 + 0.5 clamps to 0.5 */
+    /* r = 0.01, first update: I = 0.01; c = 0.005 + 0.01 */
     ppid_output_t o = ppid_step(&p, &s, 8.0, 7.92, true, true);
+    CHECK_NEAR(o.volts, 2.0 * 1.015, TOL);
+    /* r = 0.01: I = 0.01 + 1 clamps to 0.5; c = 0.005 + 0.5 clamps to 0.5 */
+    o = ppid_step(&p, &s, 8.0, 7.92, true, true);
     CHECK_NEAR(o.volts, 3.0, TOL);
     CHECK_NEAR(s.integral, 0.5, TOL);
-    /* r = -0.01: I = 0.5 - 1 = -0.5 (an unclamped I would be 0): c = -0.505 -> -0.5 */
+    /* r = -0.01: I = 0.5 - 1 = -0.5 (an unclamped I would be 0.01): c = -0.505 -> -0.5 */
     o = ppid_step(&p, &s, 8.0, 8.08, true, true);
     CHECK_NEAR(o.volts, 1.0, TOL);
     CHECK_NEAR(s.integral, -0.5, TOL);
@@ -206,13 +238,36 @@ static void test_physical_volts_clamp(void)
 {
     ppid_params_t p = easy(PPID_LAW_PHYSICAL);
     p.kp3 = 10.0;
+    p.settle_periods = 0.0;
     ppid_state_t s;
     ppid_reset(&s);
-    /* ff(12) = 4.5 V; r = 1 -> c = 0.5 -> 6.75 V; ff(16) = 8 V -> 12 V clamps to 10 */
+    /* ff(12) = 4.5 V; r = 1 -> c = 0.5 -> 6.75 V (the first update also learns I = 0.5);
+     * 12 -> 16 is a jump: c = I = 0.5, ff(16) = 8 V -> 12 V clamps to 10 */
     ppid_output_t o = ppid_step(&p, &s, 12.0, 0.0, true, true);
     CHECK_NEAR(o.volts, 6.75, TOL);
     o = ppid_step(&p, &s, 16.0, 0.0, true, false);
     CHECK_NEAR(o.volts, 10.0, 0);
+}
+
+static void test_physical_anti_windup(void)
+{
+    ppid_params_t p = easy(PPID_LAW_PHYSICAL);
+    p.ki1 = 0.25;
+    p.ki2 = 0.25;
+    p.kp1 = p.kp2 = p.kp3 = 0.0;
+    p.e2 = 0.9;
+    p.settle_periods = 0.0;
+    ppid_state_t s;
+    ppid_reset(&s);
+    /* ff(40) clamps at 10 V: the command already sits at its limit, so a positive error
+     * is not integrated (the first update included) */
+    for (int k = 0; k < 5; k++) {
+        ppid_step(&p, &s, 40.0, 30.0, true, true);
+    }
+    CHECK_NEAR(s.integral, 0.0, 0);
+    /* a negative error still is: r = -0.25 -> I = ki_first * r */
+    ppid_step(&p, &s, 40.0, 50.0, true, true);
+    CHECK_NEAR(s.integral, -0.25 * p.ki_first, TOL);
 }
 
 static void test_law_names(void)
@@ -228,4 +283,5 @@ static void test_law_names(void)
 
 TEST_MAIN("piecewise_pid", test_defaults, test_feedforward, test_open_loop_ignores_sensor,
           test_paper_literal_sequence, test_segment_boundaries, test_physical_sequence,
-          test_physical_integral_clamp, test_physical_volts_clamp, test_law_names)
+          test_physical_settle_gate, test_physical_integral_clamp, test_physical_volts_clamp,
+          test_physical_anti_windup, test_law_names)

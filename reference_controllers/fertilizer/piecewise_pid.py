@@ -37,7 +37,10 @@ class PiecewisePidParams:
 
     ``e1``, ``e2`` are g/s in paper-literal mode and fractions of the target in physical
     mode. ``km`` (V per controller unit, [F] eq. 3) is used by paper-literal mode only,
-    ``c_max`` (bound of the feedforward correction) by physical mode only. The feedforward
+    ``c_max`` (bound of the feedforward correction) and ``settle_periods`` (control periods
+    after a target jump during which reports are ignored: their windows still hold the flow
+    from before) and ``ki_first`` (the integral's gain on the first update after a reset: the
+    meter factor learnt from the first clean report) by physical mode only. The feedforward
     is the meter's nominal map ``q = ff_coeff·n^ff_exponent`` g/s per row (n shaft r/min)
     and the drive's ``shaft_rpm_per_v``.
     """
@@ -53,6 +56,8 @@ class PiecewisePidParams:
     e2: float
     km: float = 0.1
     c_max: float = 0.5
+    settle_periods: float = 17.0
+    ki_first: float = 0.8
     ff_coeff: float = 4.586
     ff_exponent: float = 0.6537
     shaft_rpm_per_v: float = 6.0
@@ -68,6 +73,10 @@ class PiecewisePidParams:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if self.c_max < 0.0:
             raise ValueError(f"c_max must be >= 0, got {self.c_max}")
+        if not 0.0 <= self.ki_first <= 1.0:
+            raise ValueError(f"ki_first must be within [0, 1], got {self.ki_first}")
+        if self.settle_periods < 0.0:
+            raise ValueError(f"settle_periods must be >= 0, got {self.settle_periods}")
 
     @classmethod
     def paper_literal(cls) -> PiecewisePidParams:
@@ -77,10 +86,11 @@ class PiecewisePidParams:
 
     @classmethod
     def physical(cls) -> PiecewisePidParams:
-        """Normalized gains tuned on the emulator, block sensor (section 1b and "Tuning
-        results" of the contract; ``scripts/tune_piecewise_pid.py``)."""
-        return cls(mode="physical", kp1=0.4, kp2=0.0, kp3=0.0, ki1=0.1, ki2=0.2, kd=0.05,
-                   e1=0.02, e2=0.10)
+        """Normalized gains tuned on the emulator with the sliding-window flow modules the
+        reference profiles are installed with (section 1b and "Tuning results" of the
+        contract; ``scripts/tune_piecewise_pid.py``)."""
+        return cls(mode="physical", kp1=0.4, kp2=0.4, kp3=0.0, ki1=0.04, ki2=0.04, kd=0.0,
+                   e1=0.02, e2=0.10, ki_first=0.8)
 
     @classmethod
     def default(cls, mode: str) -> PiecewisePidParams:
@@ -132,6 +142,9 @@ class PiecewisePid:
         self.e_prev2 = 0.0
         self.integral = 0.0       # physical: I
         self.correction = 0.0     # physical: c
+        self.target_prev = 0.0    # physical: the target of the previous step
+        self.since_jump = 0       # physical: steps since the last target jump
+        self.learnt = False       # physical: the integral has had its first update
         self.segment = SEGMENT_NONE
 
     def _gains(self, segment: int) -> tuple[float, float]:
@@ -149,14 +162,26 @@ class PiecewisePid:
             self.reset()
             return 0.0, SEGMENT_NONE
         update = bool(new_report) and bool(has_measurement)
-        if self.params.mode == "paper-literal":
+        p = self.params
+        if p.mode == "paper-literal":
             if update:
                 self._update_incremental(target_gps - measured_gps)
-            return self.params.km * self.u, self.segment
-        if update:
-            self._update_normalized((target_gps - measured_gps) / target_gps)
-        volts = feedforward_volts(target_gps, self.params) * (1.0 + self.correction)
-        return _clamp(volts, 0.0, self.params.v_max), self.segment
+            return p.km * self.u, self.segment
+        if abs(target_gps - self.target_prev) > p.e2 * self.target_prev:
+            # a jump (also the first step after a reset): the sensors' windows still hold the
+            # old flow; keep only the integral (P and D were about the old target) and wait
+            self.since_jump = 0
+            self.started = False
+            self.correction = self.integral
+        else:
+            self.since_jump += 1
+        self.target_prev = target_gps
+        ff = feedforward_volts(target_gps, p)
+        if update and self.since_jump >= p.settle_periods:
+            self._update_normalized((target_gps - measured_gps) / target_gps,
+                                    saturated=ff * (1.0 + self.correction) >= p.v_max)
+        volts = ff * (1.0 + self.correction)
+        return _clamp(volts, 0.0, p.v_max), self.segment
 
     def _update_incremental(self, e: float) -> None:
         """[F] eq. 12-13 literally: Δu = Kp·Δe + Ki·e + Kd·Δ²e, u clamped to [0, v_max/km]."""
@@ -171,15 +196,20 @@ class PiecewisePid:
         self.u = _clamp(self.u + du, 0.0, p.v_max / p.km)
         self.e_prev2, self.e_prev = self.e_prev, e
 
-    def _update_normalized(self, r: float) -> None:
-        """Section 1b: relative error, position-form P and D, incremental I, all bounded."""
+    def _update_normalized(self, r: float, saturated: bool) -> None:
+        """Section 1b: relative error, position-form P and D, incremental I, all bounded;
+        no integration towards a limit the command already sits at (anti-windup)."""
         p = self.params
         if not self.started:
             self.e_prev = r
             self.started = True
         self.segment = segment_of(abs(r), p.e1, p.e2)
         kp, ki = self._gains(self.segment)
-        self.integral = _clamp(self.integral + ki * r, -p.c_max, p.c_max)
+        if not (saturated and r > 0.0):
+            if not self.learnt:       # the first clean report: learn the meter factor
+                ki = p.ki_first
+            self.integral = _clamp(self.integral + ki * r, -p.c_max, p.c_max)
+            self.learnt = True
         self.correction = _clamp(kp * r + self.integral + p.kd * (r - self.e_prev),
                                  -p.c_max, p.c_max)
         self.e_prev = r

@@ -50,7 +50,9 @@ def ch1_mv(frames: dict) -> int:
 
 def test_bench_setpoint_gives_the_feedforward_on_sync(start_app) -> None:
     with SoftwareBus(port=0) as sb:
-        app = start_app(APP, sb.spec(), "--sync", bootup_id=HEARTBEAT)
+        # no settle gate: the report of the next period counts at once
+        app = start_app(APP, sb.spec(), "--sync", "--param", "settle_periods=0",
+                        bootup_id=HEARTBEAT)
         app.send(0x210, setpoint(target_flow=23.0))
         time.sleep(0.05)                       # the setpoint is in before the SYNC
         frames = app.sync({0x220, 0x190, HEARTBEAT})
@@ -60,12 +62,14 @@ def test_bench_setpoint_gives_the_feedforward_on_sync(start_app) -> None:
         assert status["TargetFlow"] == pytest.approx(23.0)
         assert status["Enabled"] == 1 and status["ActiveMode"] == 1
         assert status["SensorFault"] == 1       # enabled and no flow module has reported
-        # a report 5 % low: the physical law raises its correction (I += Ki·r)
+        # a report 5 % low (medium band): the first update learns I = ki_first·r and adds
+        # Kp2·r (the defaults: ki_first = 0.8, Kp2 = 0.4)
         app.drain()
         app.send(0x181, flow_report(23.0 * 0.95))
         time.sleep(0.05)
         frames = app.sync({0x220, HEARTBEAT})
-        assert ch1_mv(frames) == round(feedforward_v(23.0) * (1 + 0.8 * 0.05) * 1000.0)
+        assert ch1_mv(frames) == round(feedforward_v(23.0) * (1 + 0.4 * 0.05 + 0.8 * 0.05)
+                                       * 1000.0)
         # disabled: 0 V
         app.send(0x210, setpoint(enable=0))
         time.sleep(0.05)

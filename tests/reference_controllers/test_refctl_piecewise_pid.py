@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pytest
@@ -17,8 +18,10 @@ from reference_controllers.params import ParamError, override
 
 PAPER = PiecewisePidParams.paper_literal()
 # explicit gains, so these tests do not move when the tuned defaults do
+# (no settle gate, and a first-update integral gain equal to the medium band's, so that the
+# band arithmetic below is the plain law; the gate and the learning have tests of their own)
 PHYS = PiecewisePidParams(mode="physical", kp1=0.1, kp2=0.2, kp3=0.3, ki1=0.4, ki2=0.5,
-                          kd=0.6, e1=0.02, e2=0.10)
+                          kd=0.6, e1=0.02, e2=0.10, settle_periods=0.0, ki_first=0.5)
 
 
 def ff(q: float) -> float:
@@ -94,13 +97,16 @@ def test_physical_update_position_form_with_integral() -> None:
     c2 = 0.1 * r2 + i2 + 0.6 * (r2 - r1)
     assert segment == 1
     assert volts == pytest.approx(ff(q) * (1 + c2), rel=1e-14)
-    # between reports the correction is held but a new target acts through the feedforward
+    # between reports the correction is held
+    volts, segment = pid.step(q, 0.0, True, False)
+    assert (volts, segment) == (pytest.approx(ff(q) * (1 + c2), rel=1e-14), 1)
+    # a target jump acts through the feedforward at once and keeps only I
     volts, segment = pid.step(34.0, 0.0, True, False)
-    assert (volts, segment) == (pytest.approx(ff(34.0) * (1 + c2), rel=1e-14), 1)
+    assert (volts, segment) == (pytest.approx(ff(34.0) * (1 + i2), rel=1e-14), 1)
 
 
 def test_physical_coarse_band_has_no_integral_and_leaves_no_frozen_step() -> None:
-    pid = PiecewisePid(PHYS)
+    pid = PiecewisePid(dataclasses.replace(PHYS, ki_first=0.0))
     q = 30.0
     pid.step(q, q * 0.5, True, True)                        # r = 0.5: coarse, c = Kp3·r
     assert pid.integral == 0.0 and pid.correction == pytest.approx(0.15)
@@ -113,15 +119,50 @@ def test_physical_coarse_band_has_no_integral_and_leaves_no_frozen_step() -> Non
 
 def test_physical_clamps_integral_correction_and_volts() -> None:
     pid = PiecewisePid(PHYS)
-    q = 60.0
+    q = 30.0
     for _ in range(40):                                     # r = 0.08 forever: I winds up …
         pid.step(q, q * 0.92, True, True)
     assert pid.integral == 0.5 and pid.correction == 0.5    # … to c_max and no further
-    volts, _ = pid.step(q, q * 0.92, True, True)
-    assert volts == 10.0                                    # ff(60)·1.5 > v_max
     for _ in range(3):                                      # and unwinds at once
         pid.step(q, q * 1.08, True, True)
     assert pid.integral == pytest.approx(0.5 - 3 * 0.5 * 0.08)
+
+
+def test_physical_does_not_wind_up_against_the_output_limit() -> None:
+    pid = PiecewisePid(PHYS)
+    q = 60.0                                                # ff(60) = 8.5 V
+    volts = 0.0
+    for _ in range(40):                                     # r = 0.08 forever
+        volts, _ = pid.step(q, q * 0.92, True, True)
+    assert volts == 10.0                                    # the command sits at v_max …
+    # … and I stopped growing once it got there (never to c_max)
+    assert pid.integral < 10.0 / ff(q) - 1.0 + 0.5 * 0.08 + 1e-12
+    for _ in range(3):                                      # and unwinds at once
+        before = pid.integral
+        pid.step(q, q * 1.08, True, True)
+        assert pid.integral == pytest.approx(before - 0.5 * 0.08)
+
+
+def test_physical_ignores_reports_for_settle_periods_after_a_jump() -> None:
+    params = dataclasses.replace(PHYS, settle_periods=3.0, ki_first=0.8)
+    pid = PiecewisePid(params)
+    for _ in range(3):                                      # windows still hold the old flow
+        volts, segment = pid.step(23.0, 2.0, True, True)
+        assert (volts, segment) == (pytest.approx(ff(23.0), rel=1e-14), 0)
+    volts, _ = pid.step(23.0, 23.0 * 0.96, True, True)      # r = 0.04, the first clean report
+    assert pid.integral == pytest.approx(0.8 * 0.04)        # learns the meter factor
+    assert volts == pytest.approx(ff(23.0) * (1 + 0.2 * 0.04 + 0.8 * 0.04), rel=1e-12)
+    # a jump of the target keeps I (the meter factor), drops P and D, and waits again
+    volts, _ = pid.step(44.0, 23.0, True, True)
+    assert pid.correction == pid.integral
+    assert volts == pytest.approx(ff(44.0) * (1 + 0.8 * 0.04), rel=1e-12)
+    # a slow change (at most e2 per period, as speed changes in the field) is no jump
+    pid.step(44.0, 44.0, True, True)
+    pid.step(44.0, 44.0, True, True)
+    pid.step(44.0, 44.0, True, True)
+    assert pid.since_jump == 3
+    pid.step(44.0 * 1.05, 44.0, True, True)
+    assert pid.since_jump == 4
 
 
 def test_open_loop_ignores_the_sensor() -> None:
