@@ -1,0 +1,90 @@
+"""The fertilizer qualification discriminates: the reference controller passes the step and bench
+suites, and each must-fail profile (``dut_profiles/must_fail/fertilizer-*.toml``) fails them on
+the measurement its defect breaks.
+
+Each case is ``hil qualify PROFILE --bus inline -k "flow_step or bench_accuracy"`` in a
+subprocess (the way a user's CI meets it), judged from its ``record.json``. The depth profiles
+have their own file (``tests/test_suites_depth_discrimination.py``).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from hil.dut.profile import load_profile
+
+ROOT = Path(__file__).resolve().parents[1]
+REFERENCE = ROOT / "dut_profiles" / "fertilizer-piecewise-pid-daemon.toml"
+MUST_FAIL = ROOT / "dut_profiles" / "must_fail"
+SELECTION = "flow_step or bench_accuracy"
+NOT_PASSED = {"fail", "error"}
+
+#: profile stem -> measurement -> how many of its conditions (at least) must not pass
+EXPECTED: dict[str, dict[str, int]] = {
+    # crashes 10 s into control: every run that lasts longer ends early (error)
+    "fertilizer-dies-after-10s-daemon": {"flow.step.response_time": 3,
+                                         "flow.step.steady_state_error": 3,
+                                         "flow.bench.accuracy": 3},
+    # runs 30 g/s whatever the terminal says: the accuracy and the steady state are off
+    "fertilizer-ignores-setpoint-daemon": {"flow.step.steady_state_error": 3,
+                                           "flow.bench.accuracy": 3},
+    # the feedforward alone: the fertilizer's ~3.5 % density deficit is never corrected
+    "fertilizer-no-integral-daemon": {"flow.step.steady_state_error": 3,
+                                      "flow.bench.accuracy": 3},
+    # [F]'s published gains on a physical meter: large overshoot
+    "fertilizer-paper-literal-daemon": {"flow.step.overshoot": 2,
+                                        "flow.bench.accuracy": 2},
+    # a 3 s loop: slow to correct the deficit
+    "fertilizer-slow-period-daemon": {"flow.step.response_time": 3,
+                                      "flow.bench.accuracy": 3},
+}
+
+
+def _qualify(profile: Path, out: Path) -> tuple[subprocess.CompletedProcess[str],
+                                                dict[str, Any]]:
+    proc = subprocess.run(
+        [sys.executable, "-m", "hil", "qualify", str(profile), "--bus", "inline",
+         "--out", str(out), "-k", SELECTION, "--quiet"],
+        capture_output=True, text=True, cwd=ROOT, timeout=600)
+    record_path = out / "record.json"
+    assert record_path.exists(), proc.stdout + proc.stderr
+    return proc, json.loads(record_path.read_text())
+
+
+def test_every_must_fail_fertilizer_profile_is_covered_and_judged_as_the_reference() -> None:
+    reference = load_profile(REFERENCE)
+    profiles = sorted(MUST_FAIL.glob("fertilizer-*.toml"))
+    assert sorted(p.stem for p in profiles) == sorted(EXPECTED)
+    for path in profiles:
+        profile = load_profile(path)
+        assert profile.limits == reference.limits, path.name
+        assert profile.rig_config == reference.rig_config, path.name
+
+
+def test_reference_passes(tmp_path: Path) -> None:
+    proc, record = _qualify(REFERENCE, tmp_path / "q")
+    assert proc.returncode == 0 and record["verdict"] == "pass", proc.stdout + proc.stderr
+    names = {m["name"] for m in record["measurements"]}
+    assert {"flow.step.response_time", "flow.bench.accuracy"} <= names
+    judged = [m for m in record["measurements"] if m["outcome"] != "info"]
+    assert judged and all(m["outcome"] == "pass" for m in judged)
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED))
+def test_must_fail_profile_fails_on_its_defect(tmp_path: Path, name: str) -> None:
+    proc, record = _qualify(MUST_FAIL / f"{name}.toml", tmp_path / "q")
+    assert proc.returncode == 1 and record["verdict"] == "fail", proc.stdout + proc.stderr
+    for measurement, at_least in EXPECTED[name].items():
+        got = [m for m in record["measurements"] if m["name"] == measurement]
+        assert got, f"{name}: {measurement} was not measured"
+        bad = [m for m in got if m["outcome"] in NOT_PASSED]
+        assert len(bad) >= at_least, (
+            f"{name}: {measurement} failed {len(bad)} of {len(got)} conditions, expected at "
+            f"least {at_least}: " + "; ".join(f"{m['conditions']} = {m['value']} "
+                                              f"{m['outcome']}" for m in got))
