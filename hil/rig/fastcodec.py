@@ -23,12 +23,55 @@ code that raised them before.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from pathlib import Path
+from typing import Any, TypeVar
 
+import cantools
+from cantools.database.can import Database, Message
 from cantools.database.conversion import BaseConversion, IdentityConversion, LinearConversion
+from cantools.database.errors import Error as CantoolsError
 
-__all__ = ["KIND_IDENTITY", "KIND_LINEAR", "KIND_LINEAR_INTEGER", "FrameLayout", "SignalLayout"]
+from hil.errors import FrameError
+
+__all__ = ["KIND_IDENTITY", "KIND_LINEAR", "KIND_LINEAR_INTEGER", "FrameLayout", "SignalLayout",
+           "load_compiled"]
+
+F = TypeVar("F")
+
+#: parsed databases by (path, mtime, size, strict, frame compiler): the rig and an in-process
+#: controller load the same DBC (tens of ms each with cantools' parser); only ever read
+_LOADED: dict[tuple[Any, ...], tuple[Database, dict[str, Any]]] = {}
+
+
+def load_compiled(path: Path, build: Callable[[Message], F | None], *,
+                  strict: bool = True) -> tuple[Database, dict[str, F]]:
+    """The DBC at ``path`` and, by message name, what ``build`` compiles of its messages
+    (those it returns ``None`` for are left out). Cached while the file is unchanged; a file
+    that cannot be loaded raises :class:`FrameError` naming it."""
+    try:
+        st = path.stat()
+        key: tuple[Any, ...] | None = (str(path.resolve()), st.st_mtime_ns, st.st_size,
+                                       strict, build)
+    except OSError:
+        key = None
+    if key is not None and key in _LOADED:
+        return _LOADED[key]
+    try:
+        db = cantools.database.load_file(str(path), strict=strict)
+    except (OSError, CantoolsError) as exc:
+        raise FrameError(f"{path}: cannot load the CAN database: {exc}") from exc
+    if not isinstance(db, Database):
+        raise FrameError(f"{path}: not a CAN database")
+    fast: dict[str, F] = {}
+    for message in db.messages:
+        frame = build(message)
+        if frame is not None:
+            fast[message.name] = frame
+    if key is not None:
+        _LOADED[key] = (db, fast)
+    return db, fast
 
 #: how a signal turns a physical value into a raw one: as cantools' numeric conversion does
 KIND_IDENTITY = 0          # raw = round(value)

@@ -32,14 +32,14 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import can
-import cantools
-from cantools.database.can import Database, Message, Signal
+from cantools.database.can import Message, Signal
 from cantools.database.errors import Error as CantoolsError
 
 from hil.errors import ConfigError, FrameError
-from hil.rig.fastcodec import KIND_IDENTITY, KIND_LINEAR, FrameLayout
+from hil.rig.fastcodec import KIND_IDENTITY, KIND_LINEAR, FrameLayout, load_compiled
 from plant_emulators.fertilizer.config import FertilizerRigConfig
 from plant_emulators.fertilizer.flow_sensor import FlowReport, SensorStatus
 from plant_emulators.fertilizer.ground_speed import HallReport, TractorSpeedReport
@@ -437,35 +437,9 @@ class FertilizerDatabase:
 
 _INF = math.inf
 
-#: parsed databases by (path, mtime, size): the rig and an in-process controller load the same
-#: DBC (tens of ms each with cantools' parser); the objects are only ever read
-_LOADED: dict[tuple[str, int, int], tuple[Database, dict[str, _FastFrame]]] = {}
-
-
-def _load(path: Path) -> tuple[Database, dict[str, _FastFrame]]:
-    """The parsed database at ``path`` and its compiled frames (cached while the file is
-    unchanged)."""
-    try:
-        st = path.stat()
-        key: tuple[str, int, int] | None = (str(path.resolve()), st.st_mtime_ns, st.st_size)
-    except OSError:
-        key = None
-    if key is not None and key in _LOADED:
-        return _LOADED[key]
-    try:
-        db = cantools.database.load_file(str(path))
-    except (OSError, CantoolsError) as exc:
-        raise FrameError(f"{path}: cannot load the CAN database: {exc}") from exc
-    if not isinstance(db, Database):
-        raise FrameError(f"{path}: not a CAN database")
-    fast = {}
-    for message in db.messages:
-        frame = _FastFrame.build(message)
-        if frame is not None:
-            fast[message.name] = frame
-    if key is not None:
-        _LOADED[key] = (db, fast)
-    return db, fast
+def _load(path: Path) -> tuple[Any, dict[str, _FastFrame]]:
+    """The parsed database at ``path`` and its compiled frames (cached while unchanged)."""
+    return load_compiled(path, _FastFrame.build)
 
 
 class _FastFrame:

@@ -28,11 +28,10 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 import can
-import cantools
 from cantools.database.errors import DecodeError, EncodeError
 
 from hil.errors import FrameError
-from hil.rig.fastcodec import KIND_IDENTITY, KIND_LINEAR, FrameLayout
+from hil.rig.fastcodec import KIND_IDENTITY, KIND_LINEAR, FrameLayout, load_compiled
 
 __all__ = [
     "DBC_PATH",
@@ -284,33 +283,9 @@ _FIELD_SIGNALS: dict[type[Any], tuple[tuple[str, str], ...]] = {
 
 _INF = math.inf
 
-#: parsed databases by (path, mtime, size): the rig and an in-process controller load the same
-#: DBC (tens of ms each with cantools' parser); the objects are only ever read
-_LOADED: dict[tuple[str, int, int], tuple[Any, dict[str, _FastFrame]]] = {}
-
-
 def _load(path: Path) -> tuple[Any, dict[str, _FastFrame]]:
-    """The parsed database at ``path`` and its compiled frames (cached while the file is
-    unchanged)."""
-    try:
-        st = path.stat()
-        key: tuple[str, int, int] | None = (str(path.resolve()), st.st_mtime_ns, st.st_size)
-    except OSError:
-        key = None
-    if key is not None and key in _LOADED:
-        return _LOADED[key]
-    try:
-        db = cantools.database.load_file(str(path), strict=True)
-    except (OSError, cantools.database.UnsupportedDatabaseFormatError) as exc:
-        raise FrameError(f"{path}: cannot load the DBC: {exc}") from exc
-    fast = {}
-    for message in db.messages:
-        frame = _FastFrame.build(message)
-        if frame is not None:
-            fast[message.name] = frame
-    if key is not None:
-        _LOADED[key] = (db, fast)
-    return db, fast
+    """The parsed database at ``path`` and its compiled frames (cached while unchanged)."""
+    return load_compiled(path, _FastFrame.build)
 
 
 class _FastFrame:
