@@ -181,6 +181,7 @@ class QualificationSession:
             # the rig is wired as the DUT under qualification says (a baseline run too)
             rig_config=dict(self.profile.rig_config),
             rig_config_source=str(self.profile.path or ""),
+            max_dut_frames_per_period=profile.timing.max_frames_per_period,
             extra_meta={"dut_identity": profile.identity(), "dut_build": build,
                         "test": nodeid}))
         self.runs[key] = _RunEntry(result, rel, scenario.name)

@@ -93,6 +93,9 @@ def _run(args: argparse.Namespace) -> int:
                                      csv=args.csv, step_timeout_s=args.step_timeout,
                                      rig_config=rig_config,
                                      rig_config_source=str(profile.path if profile else ""),
+                                     max_dut_frames_per_period=(
+                                         profile.timing.max_frames_per_period
+                                         if profile else None),
                                      extra_meta=extra))
     if args.plot:
         from hil.plot import plot_traces

@@ -46,6 +46,9 @@ class RunOptions:
     #: overrides of the rig's packaged config (a DUT profile's ``[rig]``), and their source
     rig_config: dict[str, Any] = field(default_factory=dict)
     rig_config_source: str = ""
+    #: more frames than this from the DUT within one control period ends the run (a DUT that
+    #: floods the bus); a profile's timing.max_frames_per_period. None: no limit
+    max_dut_frames_per_period: int | None = None
     extra_meta: dict[str, Any] = field(default_factory=dict)
 
 
@@ -87,6 +90,9 @@ class _Loop:
         self.clock.add_participant(self.barrier)
         self._log_frame = rec.log_frame
         self._now = self.clock.now
+        self._flood_limit = options.max_dut_frames_per_period
+        self._flood_window = -1
+        self._flood_count = 0
 
     def _log(self, msg: can.Message, *, rx: bool) -> None:
         self._log_frame(msg, self._now(), rx=rx)
@@ -113,6 +119,8 @@ class _Loop:
     def intake(self, msg: can.Message) -> None:
         self.frames_rx += 1
         self._log(msg, rx=True)
+        if self._flood_limit is not None:
+            self._count_for_flood(msg)
         if msg.is_error_frame:
             self.rig.ctx.note(self.clock.time_s, "bus-error", "error frame received")
             return
@@ -125,6 +133,19 @@ class _Loop:
                     self.send(reply)
                 return
         self.rig.on_dut_frame(msg, t)
+
+    def _count_for_flood(self, msg: can.Message) -> None:
+        period = self.rig.control_period_s
+        window = int(self.clock.time_s / period + 1e-9)
+        if window != self._flood_window:
+            self._flood_window, self._flood_count = window, 0
+        self._flood_count += 1
+        if self._flood_limit is not None and self._flood_count > self._flood_limit:
+            raise DutError(
+                f"the DUT flooded the bus: more than {self._flood_limit} frames within one "
+                f"control period ({period * 1000:g} ms) at t={self.clock.time_s:.3f} s, the "
+                f"last 0x{msg.arbitration_id:X} (limit: timing.max_frames_per_period of its "
+                f"profile)")
 
     def drain(self) -> None:
         while True:

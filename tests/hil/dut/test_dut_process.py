@@ -136,3 +136,30 @@ def test_unstartable_command_names_the_profile(write_profile, tmp_path) -> None:
                      log_dir=tmp_path / "missing")
     with pytest.raises(DutError, match=r"\[launch.command\] cannot start"):
         dut.start("virtual:toy-missing")
+
+
+@pytest.mark.parametrize(("behaviour", "ends"), [("flood", True), ("good", False)])
+def test_a_flooding_dut_ends_the_run_with_a_clear_error_and_its_frames_kept(
+        write_profile, tmp_path, behaviour: str, ends: bool) -> None:
+    """500 frames per SYNC against a limit of 50 per control period: the run ends as an error
+    naming the limit, the frames up to there are in the bus log; a good DUT runs to the end."""
+    import dataclasses
+
+    from hil.rig import RunOptions, run_scenario
+    from plant_emulators.fertilizer.rig import FertilizerRig
+
+    dut = _dut(write_profile, tmp_path, behaviour)
+    scenario = dataclasses.replace(FertilizerRig.load_scenario("bench-step-23"), duration_s=1.0)
+    out = tmp_path / "run"
+    result = run_scenario(FertilizerRig, scenario, dut, RunOptions(
+        out_dir=out, bus="softbus", clock="lockstep",
+        max_dut_frames_per_period=dut.profile.timing.max_frames_per_period))
+    error = result.record["error"] or ""
+    if ends:
+        assert result.verdict == "error"
+        assert "flooded the bus: more than 50 frames within one control period" in error
+        assert "timing.max_frames_per_period" in error
+        assert (out / "bus.log").read_text().count(" 220#") >= 50   # kept up to the limit
+    else:
+        assert not error and result.sim_s == pytest.approx(1.0)
+    assert result.record["dut"]["exit_code"] is not None      # stopped, nothing left behind
