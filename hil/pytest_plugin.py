@@ -25,7 +25,9 @@ HTML report are written to ``--hil-report``.
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
+import hashlib
 import json
 import math
 import re
@@ -314,7 +316,7 @@ class QualificationSession:
             "wall_s": round(time.perf_counter() - self.t0, 3),
             "verdict": self._verdict(exitstatus),
             "dut": {**self.profile.identity(), "parameters": self.profile.parameters},
-            "rig": {"name": rig_cls.name},
+            "rig": {"name": rig_cls.name, **_rig_config_identity(rig_cls, self.profile)},
             "bus": self.bus, "clock": self.clock, "seed": self.seed,
             "suites": sorted(_wanted_suites(self.suites)),
             "versions": versions(),
@@ -329,6 +331,28 @@ class QualificationSession:
 
 
 _REPORT_ERROR = pytest.StashKey[str]()
+
+
+def _rig_config_identity(rig_cls: type[Rig], profile: DutProfile) -> dict[str, Any]:
+    """What the record says of the rig's config: its hash (the packaged config with the
+    profile's ``[rig]`` overrides applied) and the overrides as dotted keys."""
+    config = rig_cls.load_config(profile.rig_config, source=str(profile.path or ""))
+    out: dict[str, Any] = {}
+    if dataclasses.is_dataclass(config) and not isinstance(config, type):
+        text = json.dumps(dataclasses.asdict(config), sort_keys=True, default=str)
+        out["config_sha256"] = hashlib.sha256(text.encode()).hexdigest()
+    out["config_overrides"] = _dotted(profile.rig_config) or "none (the packaged config)"
+    return out
+
+
+def _dotted(table: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key, value in table.items():
+        if isinstance(value, dict):
+            out.update(_dotted(value, f"{prefix}{key}."))
+        else:
+            out[f"{prefix}{key}"] = value
+    return out
 
 
 def _slug(text: str) -> str:

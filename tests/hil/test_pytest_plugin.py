@@ -147,3 +147,20 @@ def test_unknown_measurement_name_fails_the_test(tmp_path: Path) -> None:
                    "robustness", "--hil-report", str(tmp_path / "q"), suite=suite)
     assert proc.returncode == 1
     assert "measurement 'flow.step.overshot' is not in the catalogue" in proc.stdout
+
+
+def test_the_record_names_the_rig_config_and_the_profile_overrides() -> None:
+    """A test engineer sees which sensors the DUT was qualified with: the profile's [rig]
+    overrides as dotted keys, and a hash of the whole config that differs with them."""
+    from hil.dut.profile import load_profile
+    from hil.pytest_plugin import _rig_config_identity
+    from plant_emulators.fertilizer.rig import FertilizerRig
+
+    root = Path(__file__).resolve().parents[2]
+    sliding = load_profile(root / "dut_profiles" / "fertilizer-piecewise-pid-daemon.toml")
+    block = load_profile(root / "dut_profiles" / "fertilizer-open-loop-daemon.toml")
+    a = _rig_config_identity(FertilizerRig, sliding)
+    b = _rig_config_identity(FertilizerRig, block)
+    assert a["config_overrides"] == {"flow_sensor.mode": "sliding"}
+    assert b["config_overrides"] == "none (the packaged config)"
+    assert len(a["config_sha256"]) == 64 and a["config_sha256"] != b["config_sha256"]
