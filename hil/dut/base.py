@@ -27,6 +27,13 @@ class DutRunner(ABC):
     def stop(self, timeout: float = 5.0) -> dict[str, Any]:
         """Stop the DUT (safe to call twice); returns what the record should keep of it."""
 
+    def restart(self, bus_spec: str, env: dict[str, str] | None = None) -> dict[str, Any]:
+        """Stop the DUT and start it again, as a power cycle would; returns what :meth:`stop`
+        said of the run before the restart."""
+        before = self.stop()
+        self.start(bus_spec, env)
+        return before
+
     @abstractmethod
     def check(self) -> None:
         """Raise :class:`DutError` if the DUT has died."""

@@ -47,7 +47,7 @@ def make_dut(profile: DutProfile, *, bus: str, clock: str,
              log_dir: Path | None = None) -> tuple[DutRunner, dict[str, Any]]:
     """The runner for ``profile`` on ``bus``/``clock``, and build facts for the record."""
     if runs_inprocess(profile, bus):
-        dut = InProcessDut(load_controller(profile))
+        dut = InProcessDut(load_controller(profile), factory=lambda: load_controller(profile))
         dut.name = profile.name
         return dut, {}
     if bus == "inline":

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import threading
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from typing import Any
 
 import can
@@ -37,8 +38,13 @@ class Controller(ABC):
 
 
 class InProcessDut(DutRunner):
-    def __init__(self, controller: Controller) -> None:
+    def __init__(self, controller: Controller,
+                 factory: Callable[[], Controller] | None = None) -> None:
         self.controller = controller
+        #: builds a fresh controller for :meth:`restart` (its state is lost, as on power-up)
+        self.factory = factory
+        self._inline_bus: InlineBus | None = None
+        self.restarts = 0
         self.name = controller.name
         self._bus: can.BusABC | None = None
         self._thread: threading.Thread | None = None
@@ -54,7 +60,27 @@ class InProcessDut(DutRunner):
         bus = InlineBus(self._inline_frame)
         bus.inject(self.controller.on_start())
         self._inline = True
+        self._inline_bus = bus
         return bus
+
+    def restart(self, bus_spec: str, env: dict[str, str] | None = None) -> dict[str, Any]:
+        """A fresh controller from :attr:`factory` (on the inline bus: no thread to stop)."""
+        if self.factory is None:
+            raise DutError(f"in-process controller {self.name!r} cannot restart: it was "
+                           f"built without a factory")
+        if not self._inline:
+            before = self.stop()
+            self._stop = threading.Event()
+            self.controller = self.factory()
+            self.restarts += 1
+            self.start(bus_spec, env)
+            return before
+        self.controller = self.factory()
+        self.controller.configure(env or {})
+        assert self._inline_bus is not None
+        self._inline_bus.inject(self.controller.on_start())
+        self.restarts += 1
+        return {"name": self.name, "kind": "in-process inline", "restarts": self.restarts}
 
     def _inline_frame(self, msg: can.Message) -> list[can.Message]:
         self.frames_in += 1
@@ -105,6 +131,7 @@ class InProcessDut(DutRunner):
             self._bus.shutdown()
             self._bus = None
         kind = "in-process inline" if self._inline else "in-process"
-        return {"name": self.name, "kind": kind, "frames_in": self.frames_in,
+        return {"name": self.name, "kind": kind, "restarts": self.restarts,
+                "frames_in": self.frames_in,
                 "frames_out": self.frames_out, "hung": alive,
                 "failure": None if self._failure is None else repr(self._failure)}

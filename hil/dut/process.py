@@ -91,6 +91,7 @@ class ProcessDut(DutRunner):
     # --- start --------------------------------------------------------------------------------
     def start(self, bus_spec: str, env: dict[str, str] | None = None) -> None:
         launch = self.profile.launch
+        self._result = None            # a restart: stop() reports the new process again
         self.argv = command_line(self.profile, bus=bus_spec, clock=self.clock, build=self.build)
         proc_env = {**os.environ, **launch.env, **(env or {}), "AGRIHIL_BUS": bus_spec,
                     "AGRIHIL_CLOCK": self.clock, "PYTHONUNBUFFERED": "1"}
@@ -220,11 +221,12 @@ class ProcessDut(DutRunner):
         self._result = result
         return result
 
-    def restart(self, bus_spec: str, env: dict[str, str] | None = None) -> None:
-        """Stop and start again (the robustness suite's DUT restart)."""
-        self.stop()
-        self._result = None
+    def restart(self, bus_spec: str, env: dict[str, str] | None = None) -> dict[str, Any]:
+        """Stop and start again (the robustness suite's DUT restart); the first process's
+        output stays in its own files (``dut.stdout.log``, the next ``dut.stdout.1.log``)."""
+        before = self.stop()
         self.start(bus_spec, env)
+        return before
 
     def identity(self) -> dict[str, Any]:
         return self.profile.identity()

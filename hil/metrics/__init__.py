@@ -28,7 +28,7 @@ from hil.metrics.depth import (
     qualified_band,
     sample_depth,
 )
-from hil.metrics.step import StepMetrics, smooth, step_response
+from hil.metrics.step import StepMetrics, recovery_time, smooth, step_response
 from hil.metrics.timing import TimingSummary, merge_timing, timing_summary
 from hil.metrics.tracking import TrackingStats, tracking_error
 
@@ -47,6 +47,7 @@ __all__ = [
     "integrate_trace",
     "merge_timing",
     "qualified_band",
+    "recovery_time",
     "sample_depth",
     "smooth",
     "step_response",

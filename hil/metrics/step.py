@@ -74,7 +74,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from hil.metrics._common import DictMixin, as_time
 
-__all__ = ["StepMetrics", "smooth", "step_response"]
+__all__ = ["StepMetrics", "recovery_time", "smooth", "step_response"]
 
 FilterKind = Literal["median", "mean", "none"]
 
@@ -281,3 +281,29 @@ def step_response(t: np.ndarray, y: np.ndarray, *, t0: float, target: float,
         peak_time_s=peak_time, delay_s=delay, steady_state_value=ss_value,
         steady_state_error_pct=ss_err, steady_window_s=steady_window_s, noise_sd=noise_sd,
         filter=filter_kind, filter_samples=n_filt, notes=tuple(notes))
+
+
+def recovery_time(t: np.ndarray, y: np.ndarray, *, t0: float, target: float,
+                  band: float = 0.05, min_hold_s: float = 1.0,
+                  filter_kind: FilterKind = "mean", filter_s: float = 1.0) -> float:
+    """Time from a disturbance at ``t0`` (a DUT restart, a fault cleared) until the filtered
+    signal is within ``band`` of ``target`` (a fraction of the target, not of a step: there
+    is no step) and stays there to the end: ``0`` when it never left, ``nan`` when it is out
+    of the band at the end or has been back for less than ``min_hold_s``.
+    """
+    t = as_time(t)
+    y = np.asarray(y, dtype=float)
+    if y.shape != t.shape:
+        raise ValueError(f"y has shape {y.shape}, t has {t.shape}")
+    if target == 0 or not 0 < band < 1:
+        raise ValueError(f"need a non-zero target and a band in (0, 1): {target}, {band}")
+    n = _filter_length(t, filter_s) if filter_kind != "none" else 1
+    yf = smooth(y, n, filter_kind)
+    after = t >= t0
+    if int(after.sum()) < 2:
+        raise ValueError(f"need at least 2 samples after t0 = {t0}")
+    ts = t[after] - t0
+    back = _enter_and_stay(ts, yf[after], float(target), band)
+    if math.isnan(back) or float(ts[-1]) - back < min_hold_s:
+        return math.nan
+    return back

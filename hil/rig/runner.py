@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 import time
 import uuid
+from collections.abc import Callable
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -90,6 +91,8 @@ class _Loop:
         self.clock.add_participant(self.barrier)
         self._log_frame = rec.log_frame
         self._now = self.clock.now
+        #: set by run_scenario: power-cycles the DUT (scenario event dut = "restart")
+        self.restart_dut: Callable[[], dict[str, Any]] | None = None
         self._flood_limit = options.max_dut_frames_per_period
         self._flood_window = -1
         self._flood_count = 0
@@ -241,6 +244,12 @@ class _Loop:
         elif event.clear:
             self.rig.set_fault(event.clear, False, event.target, t)
             self.rig.ctx.note(t, "fault-cleared", f"{event.clear} on {event.target}")
+        elif event.dut == "restart":
+            if self.restart_dut is None:
+                raise ConfigError("this run cannot restart its DUT", key="events.dut")
+            before = self.restart_dut()
+            self.rig.ctx.note(t, "dut-restart", f"the DUT was restarted (before: "
+                              f"{before.get('exit', before.get('kind', '?'))})")
 
 
 def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
@@ -292,6 +301,7 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
         stack.callback(bus.shutdown)
         stack.callback(lambda: rec.meta.__setitem__("dut", dut.stop()))
         loop = _Loop(rig, scenario, bus, rec, options.clock, options)
+        loop.restart_dut = lambda: dut.restart(spec, dut_env)
         try:
             loop.run()
             dut.check()

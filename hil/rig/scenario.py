@@ -29,6 +29,8 @@ from pathlib import Path
 from hil.config import load_toml
 from hil.errors import ConfigError
 
+DUT_ACTIONS = ("restart",)
+
 
 @dataclass(frozen=True)
 class Event:
@@ -37,11 +39,17 @@ class Event:
     fault: str | None = None
     clear: str | None = None
     target: int | None = None
+    #: "restart": the DUT is stopped and started again (a power cycle of the controller)
+    dut: str | None = None
 
     def __post_init__(self) -> None:
-        actions = sum(x is not None for x in (self.set, self.fault, self.clear))
+        actions = sum(x is not None for x in (self.set, self.fault, self.clear, self.dut))
         if actions != 1:
-            raise ConfigError("an event needs exactly one of set, fault, clear", key="events")
+            raise ConfigError("an event needs exactly one of set, fault, clear, dut",
+                              key="events")
+        if self.dut is not None and self.dut not in DUT_ACTIONS:
+            raise ConfigError(f"unknown DUT action {self.dut!r} (known: "
+                              f"{', '.join(DUT_ACTIONS)})", key="events.dut")
         if self.at_s < 0:
             raise ConfigError(f"event time must be >= 0, got {self.at_s}", key="events.at_s")
 

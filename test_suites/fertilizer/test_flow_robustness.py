@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hil.metrics import accuracy_theta, step_response
+from hil.metrics import accuracy_theta, recovery_time, step_response
 from test_suites.fertilizer.traces import (
     TRUE_FLOW_FILTER,
     delivered_and_target_g,
@@ -57,3 +57,19 @@ def test_saturation_recovery(hil_run, hil_measure) -> None:
                       **TRUE_FLOW_FILTER)
     hil_measure("flow.fault.saturation.recovery_time", m.response_time_s, run=result,
                 note="; ".join(m.notes))
+
+
+RESTART_S = 13.0           # fault-dut-restart: the controller is power-cycled here
+RESTART_TARGET_GPS = 34.0
+
+
+def test_dut_restart(hil_run, hil_measure) -> None:
+    """The controller is stopped and started again mid-run (its state is lost, the process
+    and its output are kept apart): the true flow must be back within ±5 % of the target."""
+    result = hil_run("fault-dut-restart")
+    t, flow = row_mean(result, "flow_at_meter")
+    recovery = recovery_time(t, flow, t0=RESTART_S, target=RESTART_TARGET_GPS,
+                             **TRUE_FLOW_FILTER)
+    restarts = [e for e in result.record["events"] if e["kind"] == "dut-restart"]
+    hil_measure("flow.restart.recovery_time", recovery, run=result,
+                note=f"{len(restarts)} restart(s); 0 s: the flow never left the ±5 % band")

@@ -223,3 +223,18 @@ def test_smooth() -> None:
     assert smooth(ramp, 5, "mean")[10] == pytest.approx(10.0)
     with pytest.raises(ValueError, match="odd"):
         smooth(ramp, 4, "mean")
+
+
+def test_recovery_time_back_in_band_never_left_and_not_back() -> None:
+    from hil.metrics import recovery_time
+
+    t = np.arange(0.0, 20.0, 0.01)
+    dip = np.where((t >= 10.0) & (t < 12.0), 20.0, 34.0)          # 41 % low for 2 s
+    assert recovery_time(t, dip, t0=10.0, target=34.0, filter_kind="none") == \
+        pytest.approx(2.0, abs=0.011)
+    flat = np.full_like(t, 34.5)                                    # within 5 % throughout
+    assert recovery_time(t, flat, t0=10.0, target=34.0) == 0.0
+    stuck = np.where(t >= 10.0, 30.0, 34.0)                         # 12 % low to the end
+    assert math.isnan(recovery_time(t, stuck, t0=10.0, target=34.0))
+    late = np.where((t >= 10.0) & (t < 19.5), 20.0, 34.0)           # back for only 0.5 s
+    assert math.isnan(recovery_time(t, late, t0=10.0, target=34.0, filter_kind="none"))
