@@ -40,7 +40,7 @@ from typing import Any
 
 import pytest
 
-from hil.dut.factory import make_dut
+from hil.dut.factory import make_dut, profile_run_options
 from hil.dut.profile import DutProfile, load_profile
 from hil.errors import ConfigError, HilError
 from hil.limits import MEASUREMENTS, known_measurement
@@ -181,9 +181,7 @@ class QualificationSession:
             out_dir=out_dir, clock=self.clock, bus=bus, seed=seed_used,
             step_timeout_s=step_timeout_s,
             # the rig is wired as the DUT under qualification says (a baseline run too)
-            rig_config=dict(self.profile.rig_config),
-            rig_config_source=str(self.profile.path or ""),
-            max_dut_frames_per_period=profile.timing.max_frames_per_period,
+            **profile_run_options(profile, rig_from=self.profile),
             extra_meta={"dut_identity": profile.identity(), "dut_build": build,
                         "test": nodeid}))
         self.runs[key] = _RunEntry(result, rel, scenario.name)

@@ -68,8 +68,7 @@ from plant_emulators.fertilizer.rig import FertilizerRig  # noqa: E402
 from plant_emulators.sowing_depth.rig import SowingDepthRig  # noqa: E402
 from reference_controllers.fertilizer.adapter import FlowController  # noqa: E402
 from reference_controllers.sowing_depth.adapter import DepthController  # noqa: E402
-from test_suites.fertilizer.test_flow_step import STEADY_WINDOW_S  # noqa: E402
-from test_suites.fertilizer.traces import TRUE_FLOW_FILTER  # noqa: E402
+from test_suites.fertilizer.traces import STEADY_WINDOW_S, TRUE_FLOW_FILTER  # noqa: E402
 
 TARGETS = (23, 34, 44)
 TUNE_SEEDS = (0, 1000, 2000)          # each bench step runs with its seed + these

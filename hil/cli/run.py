@@ -13,10 +13,11 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 from hil.cli.args import add_bus_clock
 from hil.dut import DutRunner, InProcessDut
-from hil.dut.factory import make_dut
+from hil.dut.factory import make_dut, profile_run_options
 from hil.dut.profile import load_profile
 from hil.errors import ConfigError
 from hil.rig import Rig, RunOptions, available_rigs, load_rig, run_scenario
@@ -78,12 +79,12 @@ def _run(args: argparse.Namespace) -> int:
     scenario = rig_cls.load_scenario(args.scenario)
     out = Path(args.out or f"runs/{scenario.name}")
     extra: dict[str, object] = {}
-    rig_config: dict[str, object] = {}
+    from_profile: dict[str, Any] = {}
     dut: DutRunner
     if profile is not None:
         dut, build = make_dut(profile, bus=args.bus, clock=args.clock, log_dir=out)
         extra = {"dut_identity": profile.identity(), "dut_build": build}
-        rig_config = dict(profile.rig_config)
+        from_profile = profile_run_options(profile)
     else:
         dut = _builtin_dut(rig_cls, args.dut)
     print(f"hil: running {rig_cls.name}/{scenario.name} ({scenario.duration_s:g} s, "
@@ -91,12 +92,7 @@ def _run(args: argparse.Namespace) -> int:
     result = run_scenario(rig_cls, scenario, dut,
                           RunOptions(out_dir=out, clock=args.clock, bus=args.bus, seed=args.seed,
                                      csv=args.csv, step_timeout_s=args.step_timeout,
-                                     rig_config=rig_config,
-                                     rig_config_source=str(profile.path if profile else ""),
-                                     max_dut_frames_per_period=(
-                                         profile.timing.max_frames_per_period
-                                         if profile else None),
-                                     extra_meta=extra))
+                                     extra_meta=extra, **from_profile))
     if args.plot:
         from hil.plot import plot_traces
         from hil.record import load_traces

@@ -59,3 +59,14 @@ def make_dut(profile: DutProfile, *, bus: str, clock: str,
     build = ensure_built(profile)
     build_path = Path(str(build["build_dir"])) if build else None
     return ProcessDut(profile, clock=clock, log_dir=log_dir, build=build_path), build
+
+
+def profile_run_options(profile: DutProfile, *, rig_from: DutProfile | None = None
+                        ) -> dict[str, Any]:
+    """What every run of ``profile`` takes from it besides the DUT runner, as
+    :class:`hil.rig.RunOptions` fields: the flood limit, and the rig's config overrides
+    (``[rig]``) of ``rig_from`` (default: ``profile``; a baseline DUT runs on the rig of the
+    DUT it is compared with)."""
+    rig = rig_from or profile
+    return {"rig_config": dict(rig.rig_config), "rig_config_source": str(rig.path or ""),
+            "max_dut_frames_per_period": profile.timing.max_frames_per_period}

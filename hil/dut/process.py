@@ -91,7 +91,9 @@ class ProcessDut(DutRunner):
     # --- start --------------------------------------------------------------------------------
     def start(self, bus_spec: str, env: dict[str, str] | None = None) -> None:
         launch = self.profile.launch
-        self._result = None            # a restart: stop() reports the new process again
+        # a restart (DutRunner.restart: stop, then start): stop() reports the new process,
+        # whose output goes to its own files (dut.stdout.log, then dut.stdout.1.log, ...)
+        self._result = None
         self.argv = command_line(self.profile, bus=bus_spec, clock=self.clock, build=self.build)
         proc_env = {**os.environ, **launch.env, **(env or {}), "AGRIHIL_BUS": bus_spec,
                     "AGRIHIL_CLOCK": self.clock, "PYTHONUNBUFFERED": "1"}
@@ -220,13 +222,6 @@ class ProcessDut(DutRunner):
                        "stderr_tail": _tail(self.stderr_path)[-1500:]})
         self._result = result
         return result
-
-    def restart(self, bus_spec: str, env: dict[str, str] | None = None) -> dict[str, Any]:
-        """Stop and start again (the robustness suite's DUT restart); the first process's
-        output stays in its own files (``dut.stdout.log``, the next ``dut.stdout.1.log``)."""
-        before = self.stop()
-        self.start(bus_spec, env)
-        return before
 
     def identity(self) -> dict[str, Any]:
         return self.profile.identity()

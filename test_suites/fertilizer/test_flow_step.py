@@ -11,16 +11,12 @@ from __future__ import annotations
 import pytest
 
 from hil.metrics import step_response
-from test_suites.fertilizer.traces import ENABLE_S, TRUE_FLOW_FILTER, row_mean
+from test_suites.fertilizer.traces import ENABLE_S, STEADY_WINDOW_S, TRUE_FLOW_FILTER, row_mean
 
 pytestmark = pytest.mark.hil_rig("fertilizer")
 
 TARGETS_GPS = (23, 34, 44)
 FILTER = TRUE_FLOW_FILTER
-#: steady state: the last 10 s of the 20 s after the step. The true flow's ripple (flute fill
-#: noise, ~1.3 % SD of the 1 s mean at 23 g/s, correlated over ~1 s) leaves a 5 s mean
-#: uncertain by ~0.5 %, half the 1 % limit; over 10 s it is ~0.35 %
-STEADY_WINDOW_S = 10.0
 
 
 @pytest.mark.hil_suite("fast")
