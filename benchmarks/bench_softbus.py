@@ -1,16 +1,21 @@
-"""Software bus throughput and round-trip latency across processes (python-can clients).
+"""Software bus throughput and round-trip latency across processes (python-can clients), the cost
+of its busy polling to other work, and a lockstep step against the C firmware.
 
 Round trip: client A (this process, python-can ``socketcand``) sends a frame, an echo peer
 (another process, python-can ``socketcand``) answers with id+1, A receives it. Configurations:
 
 ``thread``
-    the server is a :class:`SoftwareBus`, a thread of client A's process (shares A's GIL);
+    the server is a :class:`SoftwareBus`, a thread of client A's process (shares A's GIL; no
+    busy polling, as embedded buses default to);
 ``process``
-    the server is a :class:`SoftwareBusProcess`, a process of its own;
+    the server is a :class:`SoftwareBusProcess`, a process of its own (busy polling after
+    traffic, adaptive, up to ``DEFAULT_BUSY_POLL_US``: the default of a bus process);
 ``process+busy``
     as ``process``, plus a third process spinning in a busy loop (a noisy neighbour);
 ``process/1cpu``
-    as ``process``, with A, the server and the echo peer pinned to one vCPU (the idlest).
+    as ``process``, with A, the server and the echo peer pinned to one vCPU (the idlest);
+``…/nopoll``
+    as the configuration before the slash, with busy polling off (``busy_poll_us=0``).
 
 Each configuration runs ``RUNS`` times, interleaved round-robin so drift in the machine's load
 hits them alike, each run with fresh processes (the kernel places a process when it starts and
@@ -20,14 +25,21 @@ not part of the benchmark) over the run, and where A, the server and the echo pe
 summary gives the median over runs, with the range.
 
 What moves the figures, measured on the 2-vCPU VMs this project develops on (nested
-virtualisation, guest halt polling off), 160 runs: waking a process that sleeps on the *other*
-vCPU costs ~35-45 µs, charged to the sender's ``send()`` (a few µs on the same vCPU). A round
-trip through the server is four hand-offs. On an idle machine the scheduler spreads the three
-processes over both vCPUs and leaves them there: p50 ~270 µs, p99 ~550 µs, whatever the server
-does. On one vCPU (``process/1cpu``, or packed there by a busy neighbour on the other):
-p50 ~120 µs, p99 ~240-270 µs. Other load on *that* vCPU moves p99 to milliseconds (a woken
-process waits for a time slice); real-time priority helps only if all three have it. Of the
-CPU a packed round trip costs, each python-can client takes ~35-45 µs, the server ~55 µs.
+virtualisation, guest halt polling off): waking a process that sleeps on the *other* vCPU
+costs ~35-45 µs, charged to the sender's ``send()`` (a few µs on the same vCPU), and a round
+trip through the server is four hand-offs. Without busy polling, on an idle machine the
+scheduler spreads the three processes over both vCPUs: p50 ~220-300 µs, p99 ~300-410 µs
+(``process/nopoll``, two sessions of 5 runs); packed on one vCPU (by a busy neighbour) p50
+~135-200 µs, p99 ~210-300 µs. With the server busy polling after traffic its vCPU stays awake
+between the hand-offs: p50 ~115-195 µs, p99 ~225-300 µs (medians 255 and 283 µs), busy
+neighbour or not; the polls yield the CPU, so on one vCPU it does not starve the clients
+(``process/1cpu`` p99 ~200-300 µs). ``test_busy_poll_cost`` prices it: a CPU-bound neighbour
+kept ~94 % of a CPU with and without it, and an idle bus process uses no CPU.
+
+``test_lockstep_step`` is the lockstep rig's exchange with the C firmware (host build, from
+its profile; skipped without a toolchain): nine frames and SYNC, then the firmware's command
+frame, with a 700 µs busy gap between steps standing for the rig's physics; the rig's bus is
+python-can's client, agrihil's client writing behind, or :meth:`SoftwareBus.local_bus`.
 
 ``HIL_BENCH_RUNS`` (default 5) and ``HIL_BENCH_ROUND_TRIPS`` (default 2000) set the sizes.
 """
@@ -55,7 +67,8 @@ from hil.softbus import SoftwareBus, SoftwareBusProcess
 HELPERS = Path(__file__).resolve().parents[1] / "tests" / "helpers"
 RUNS = int(os.environ.get("HIL_BENCH_RUNS", "5"))
 ROUND_TRIPS = int(os.environ.get("HIL_BENCH_ROUND_TRIPS", "2000"))
-CONFIGS = ("thread", "process", "process+busy", "process/1cpu")
+CONFIGS = ("thread", "process", "process+busy", "process/1cpu", "process/nopoll",
+           "process+busy/nopoll")
 TARGET_P99_US = 300.0
 
 
@@ -203,16 +216,19 @@ def _one_run(config: str, n: int) -> Run:
             run = _round_trips(bus.spec(), n, server_pid=os.getpid(), echo=echo,
                                server_tid=bus._thread.native_id)
     else:
-        with SoftwareBusProcess(port=0) as server, Echo(server.spec()) as echo:
+        kind, _, variant = config.partition("/")
+        poll = 0.0 if variant == "nopoll" else None   # None: the bus process's default
+        with SoftwareBusProcess(port=0, busy_poll_us=poll) as server, \
+                Echo(server.spec()) as echo:
             assert server.proc is not None
             time.sleep(0.1)
-            if config == "process+busy":
+            if kind == "process+busy":
                 with _busy_neighbour() as busy:
                     time.sleep(0.1)
                     run = _round_trips(server.spec(), n, server_pid=server.proc.pid, echo=echo,
                                        extra_pids=(busy.pid,))
             else:
-                pin = _idlest_cpu() if config == "process/1cpu" else None
+                pin = _idlest_cpu() if variant == "1cpu" else None
                 run = _round_trips(server.spec(), n, server_pid=server.proc.pid, echo=echo,
                                    pin_to=pin)
     run.config = config
@@ -242,7 +258,7 @@ def test_round_trip_latency(benchmark) -> None:
             for config in order:
                 run = _one_run(config, ROUND_TRIPS)
                 runs[config].append(run)
-                print(f"\n  run {i + 1} {config:13s} p50 {run.pct(50):5.0f}  p99 {run.pct(99):5.0f}"
+                print(f"\n  run {i + 1} {config:19s} p50 {run.pct(50):5.0f}  p99 {run.pct(99):5.0f}"
                       f"  p99.9 {run.pct(99.9):6.0f} us  steal {run.steal_pct:.2f}%  foreign "
                       f"{run.foreign_pct:3.0f}%  {run.placement}  server "
                       f"{run.server_cpu_us:.0f} us CPU/RTT", end="")
@@ -252,7 +268,7 @@ def test_round_trip_latency(benchmark) -> None:
           f"{RUNS} runs x {ROUND_TRIPS} round trips, median [range] over runs "
           f"(target p99 <= {TARGET_P99_US:.0f} us):")
     for config in CONFIGS:
-        print(f"  {config:13s} {_summary(runs[config])}")
+        print(f"  {config:19s} {_summary(runs[config])}")
         benchmark.extra_info[config] = {
             "p50_us": statistics.median(r.pct(50) for r in runs[config]),
             "p99_us": statistics.median(r.pct(99) for r in runs[config]),
@@ -261,9 +277,10 @@ def test_round_trip_latency(benchmark) -> None:
             "foreign_pct": statistics.median(r.foreign_pct for r in runs[config])}
 
 
-@pytest.fixture(scope="module")
-def server() -> Iterator[SoftwareBusProcess]:
-    with SoftwareBusProcess(port=0) as proc:
+@pytest.fixture(params=["poll", "nopoll"])
+def server(request: pytest.FixtureRequest) -> Iterator[SoftwareBusProcess]:
+    with SoftwareBusProcess(port=0, busy_poll_us=0.0 if request.param == "nopoll"
+                            else None) as proc:
         yield proc
 
 
@@ -313,7 +330,171 @@ def test_throughput_cross_process(benchmark, server: SoftwareBusProcess) -> None
     steal1, total1, _ = _cpu_times()
     rate = n / benchmark.stats.stats.median
     benchmark.extra_info.update(frames_per_s=rate, lost=len(lost))
-    print(f"\nsoftware bus throughput (2 processes): {rate:,.0f} frames/s, "
+    poll = "busy polling off" if "AGRIHIL_SOFTBUS_BUSY_POLL_US" in server._env else \
+        "busy polling on"
+    print(f"\nsoftware bus throughput (2 processes, {poll}): {rate:,.0f} frames/s, "
           f"{'no loss' if not lost else f'LOSS {lost[:3]}'} (target >= 20,000); steal "
           f"{100.0 * (steal1 - steal0) / max(1, total1 - total0):.2f}%")
     assert not lost  # loss is a correctness failure, not a timing figure
+
+
+# -- what busy polling costs the machine's other work --------------------------------------------
+_COUNTER = ("import sys, time\n"
+            "n = 0\n"
+            "end = time.monotonic() + float(sys.argv[1])\n"
+            "while time.monotonic() < end:\n"
+            "    n += 1\n"
+            "print(n)\n")
+
+
+def _neighbour_rate(seconds: float) -> float:
+    """Loop iterations per second of a CPU-bound Python process over ``seconds``."""
+    out = subprocess.run([sys.executable, "-c", _COUNTER, str(seconds)], capture_output=True,
+                         text=True, check=True).stdout
+    return int(out) / seconds
+
+
+def test_busy_poll_cost(benchmark) -> None:
+    """A CPU-bound neighbour's progress while 5,000 round trips run (python-can clients, bus
+    process), with busy polling on and off, against the neighbour alone; and the bus
+    process's CPU once traffic stops (it must be nothing)."""
+    n = ROUND_TRIPS * 2
+    rows: dict[str, list[tuple[float, float, float, float]]] = {"poll": [], "nopoll": []}
+
+    def measure() -> None:
+        for i in range(max(1, RUNS // 2)):
+            for mode in (("poll", "nopoll") if i % 2 == 0 else ("nopoll", "poll")):
+                with SoftwareBusProcess(port=0, busy_poll_us=0.0 if mode == "nopoll"
+                                        else None) as srv, Echo(srv.spec()) as echo:
+                    assert srv.proc is not None
+                    time.sleep(0.1)
+                    alone = _neighbour_rate(1.0)
+                    neighbour = subprocess.Popen([sys.executable, "-c", _COUNTER, "60"],
+                                                 stdout=subprocess.PIPE, text=True)
+                    t0 = time.monotonic()
+                    n0 = _task_ns(neighbour.pid)
+                    run = _round_trips(srv.spec(), n, server_pid=srv.proc.pid, echo=echo)
+                    share = (_task_ns(neighbour.pid) - n0) / 1e9 / (time.monotonic() - t0)
+                    neighbour.kill()
+                    neighbour.wait(10)
+                    idle0 = _task_ns(srv.proc.pid)
+                    time.sleep(1.0)
+                    idle_ms = (_task_ns(srv.proc.pid) - idle0) / 1e6
+                    rows[mode].append((run.pct(50), run.pct(99), share, idle_ms))
+                    print(f"\n  {mode:6s} p50 {run.pct(50):4.0f} p99 {run.pct(99):4.0f} us; "
+                          f"server {run.server_cpu_us:.0f} us CPU/RTT; neighbour got "
+                          f"{100 * share:.0f}% of a CPU (alone: {alone:,.0f} loops/s); bus "
+                          f"process CPU over 1 s idle after: {idle_ms:.2f} ms", end="")
+
+    benchmark.pedantic(measure, rounds=1, iterations=1)
+    print("\nbusy polling's cost, median over runs:")
+    for mode, values in rows.items():
+        med = [statistics.median(v[k] for v in values) for k in range(4)]
+        print(f"  {mode:6s} RTT p50 {med[0]:.0f} p99 {med[1]:.0f} us; CPU-bound neighbour "
+              f"{100 * med[2]:.0f}% of a CPU; idle bus process {med[3]:.2f} ms CPU per s")
+        benchmark.extra_info[mode] = {"p50_us": med[0], "p99_us": med[1],
+                                      "neighbour_cpu_share": med[2], "idle_cpu_ms_per_s": med[3]}
+
+
+# -- a lockstep step against the C firmware --------------------------------------------------------
+FIRMWARE_PROFILE = Path(__file__).resolve().parents[1] / "dut_profiles" / \
+    "fertilizer-piecewise-pid-firmware.toml"
+STEP_GAP_US = 700.0
+STEPS = int(os.environ.get("HIL_BENCH_STEPS", "2000"))
+
+
+def _firmware_binary() -> Path:
+    """The fertilizer firmware's host build (built from its profile, or found cached)."""
+    import shutil
+
+    from hil.dut.build import ensure_built
+    from hil.dut.profile import load_profile
+
+    if shutil.which("cmake") is None or not any(shutil.which(c) for c in ("cc", "gcc")):
+        pytest.skip("the firmware needs cmake and a C compiler")
+    build = ensure_built(load_profile(FIRMWARE_PROFILE))
+    assert build is not None
+    return Path(str(build["build_dir"])) / "agrihil-fertilizer-fw"
+
+
+def _steps(bus: can.BusABC, softbus: SoftwareBus, binary: Path, fw_options: str,
+           n: int) -> tuple[list[float], float]:
+    """``n`` lockstep steps: (step round trips in µs, firmware CPU s)."""
+    frames = [can.Message(arbitration_id=i, data=bytes(8), is_extended_id=False)
+              for i in (0x181, 0x182, 0x183, 0x184, 0x185, 0x210)]
+    frames += [can.Message(arbitration_id=0x18FEF100 | i, data=bytes(8), is_extended_id=True)
+               for i in range(3)]
+    sync = can.Message(arbitration_id=0x080, data=b"", is_extended_id=False)
+    fw = subprocess.Popen([str(binary), "--bus", softbus.spec() + fw_options, "--sync"],
+                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline:
+            msg = bus.recv(0.1)
+            if msg is not None and msg.arbitration_id == 0x710:
+                break
+        clock = time.perf_counter
+        rtt = []
+        for k in range(n + 100):
+            gap_end = clock() + STEP_GAP_US / 1e6
+            while clock() < gap_end:
+                pass
+            t0 = clock()
+            for frame in frames:
+                bus.send(frame)
+            bus.send(sync)
+            while True:
+                reply = bus.recv(2.0)
+                assert reply is not None, "the firmware did not answer SYNC"
+                if reply.arbitration_id == 0x220:
+                    break
+            if k >= 100:
+                rtt.append((clock() - t0) * 1e6)
+            while bus.recv(0.0) is not None:
+                pass
+        return rtt, _task_ns(fw.pid) / 1e9
+    finally:
+        fw.terminate()
+        fw.wait(10)
+
+
+STEP_CLIENTS = ("python-can", "agrihil-batch", "local", "local+poll", "local+poll/fw-poll")
+
+
+def test_lockstep_step(benchmark) -> None:
+    binary = _firmware_binary()
+    rows: dict[str, list[tuple[float, float, float]]] = {c: [] for c in STEP_CLIENTS}
+
+    def measure() -> None:
+        for i in range(RUNS):
+            for client in (STEP_CLIENTS if i % 2 == 0 else STEP_CLIENTS[::-1]):
+                with SoftwareBus(port=0) as softbus:
+                    fw_options = ",busy_poll_us=1000" if client.endswith("fw-poll") else ""
+                    bus: can.BusABC
+                    if client == "python-can":
+                        bus = open_bus(softbus.spec())
+                    elif client == "agrihil-batch":
+                        bus = open_bus(softbus.spec() + ",batch=true")
+                    else:
+                        bus = softbus.local_bus(busy_poll_us=300.0 if "poll" in client else 0.0)
+                    try:
+                        rtt, fw_cpu = _steps(bus, softbus, binary, fw_options, STEPS // 2)
+                    finally:
+                        bus.shutdown()
+                p50, p99 = float(np.percentile(rtt, 50)), float(np.percentile(rtt, 99))
+                rows[client].append((p50, p99, fw_cpu))
+                print(f"\n  run {i + 1} {client:18s} step p50 {p50:4.0f} p99 {p99:5.0f} us; "
+                      f"firmware CPU {fw_cpu:.2f} s", end="")
+
+    benchmark.pedantic(measure, rounds=1, iterations=1)
+    print(f"\nlockstep step (9 frames + SYNC -> 0x220 from the C firmware, {STEP_GAP_US:.0f} µs "
+          f"rig gap), median [range] over {RUNS} runs:")
+    for client, values in rows.items():
+        p50 = [v[0] for v in values]
+        p99 = [v[1] for v in values]
+        print(f"  {client:18s} p50 {statistics.median(p50):4.0f} [{min(p50):.0f}-{max(p50):.0f}]"
+              f"  p99 {statistics.median(p99):5.0f} [{min(p99):.0f}-{max(p99):.0f}] us; "
+              f"firmware CPU {statistics.median(v[2] for v in values):.2f} s per "
+              f"{STEPS // 2} steps")
+        benchmark.extra_info[client] = {"p50_us": statistics.median(p50),
+                                        "p99_us": statistics.median(p99)}

@@ -34,6 +34,29 @@ static int valid_name(const char *s, const char *extra)
     return 1;
 }
 
+/* One option key=value (value up to `end`): 0 if fine (or not ours), -1 if ours and bad. */
+static int parse_option(const char *key, const char *eq, const char *end, bus_spec_t *out)
+{
+    static const char name[] = "busy_poll_us";
+    if ((size_t)(eq - key) != sizeof name - 1 || strncmp(key, name, sizeof name - 1) != 0) {
+        return 0;
+    }
+    size_t n = (size_t)(end - eq - 1);
+    char value[16];
+    if (n == 0 || n >= sizeof value) {
+        return -1;
+    }
+    memcpy(value, eq + 1, n);
+    value[n] = '\0';
+    char *stop = NULL;
+    double us = strtod(value, &stop);
+    if (*stop != '\0' || !(us >= 0.0 && us <= 1e6)) {
+        return -1;
+    }
+    out->busy_poll_us = (uint32_t)us;
+    return 0;
+}
+
 int bus_spec_parse(const char *text, bus_spec_t *out, char *err, size_t errlen)
 {
     memset(out, 0, sizeof *out);
@@ -42,14 +65,18 @@ int bus_spec_parse(const char *text, bus_spec_t *out, char *err, size_t errlen)
                               "socketcand:HOST:PORT[/CHANNEL]");
         return -1;
     }
-    /* options after the first ',' are ignored (bitrate and the like belong to the interface),
-     * but must look like key=value */
+    /* options after the first ',' must look like key=value; busy_poll_us is read, the rest
+     * ignored (bitrate and the like belong to the interface) */
     size_t head_len = strcspn(text, ",");
     for (const char *opt = text + head_len; *opt == ',';) {
         const char *next = opt + 1 + strcspn(opt + 1, ",");
         const char *eq = memchr(opt + 1, '=', (size_t)(next - opt - 1));
         if (eq == NULL || eq == opt + 1) {
             return fail(err, errlen, text, "options must be key=value");
+        }
+        if (parse_option(opt + 1, eq, next, out) != 0) {
+            return fail(err, errlen, text, "busy_poll_us must be a number of microseconds "
+                                           "0-1000000");
         }
         opt = next;
     }

@@ -1,5 +1,7 @@
 /* Bus spec strings, the same syntax as hil.bus (TRANSPORT[:CHANNEL][,key=value...]), for the
- * transports the firmware speaks. Pure: no I/O, no allocation. */
+ * transports the firmware speaks. Pure: no I/O, no allocation. Options are key=value; the
+ * firmware reads busy_poll_us (socketcand) and ignores the others (bitrate and the like belong
+ * to the interface). */
 #ifndef AGRIHIL_BUS_SPEC_H
 #define AGRIHIL_BUS_SPEC_H
 
@@ -16,6 +18,7 @@ typedef struct {
     char host[BUS_SPEC_TEXT];    /* socketcand: host name or address */
     uint16_t port;               /* socketcand: TCP port */
     char channel[BUS_SPEC_TEXT]; /* socketcand: channel to open (default can0) */
+    uint32_t busy_poll_us;       /* socketcand: ",busy_poll_us=N" (0: off), see hal_can.h */
 } bus_spec_t;
 
 /* Parse `text`; 0 on success, -1 with a message naming the bad part in `err`. */

@@ -39,6 +39,9 @@ int hal_can_recv(hal_can_t *bus, hal_can_frame_t *frame, int64_t timeout_us)
 
 void hal_can_close(hal_can_t *bus)
 {
+    if (bus->fd >= 0 && bus->transport == BUS_SOCKETCAND) {
+        (void)hal_socketcand_flush(bus); /* the last frames still go out; errors: closing */
+    }
     if (bus->fd >= 0) {
         close(bus->fd);
         bus->fd = -1;

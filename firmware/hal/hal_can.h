@@ -5,7 +5,17 @@
  *   socketcand:HOST:PORT[/CHANNEL] the socketcand text protocol over TCP (agrihil's software
  *                                  bus speaks it); CHANNEL defaults to can0
  * Options after a ',' (",bitrate=250000") are accepted and ignored: the bit rate belongs to the
- * interface, not to a raw socket.
+ * interface, not to a raw socket. Except, for socketcand, ",busy_poll_us=N": before blocking
+ * for a frame, poll the socket without blocking for up to N us (an adaptive window, as
+ * Linux's halt polling: it grows while frames come within N us of a wait and shrinks to
+ * nothing when they do not, so an idle bus costs no CPU). It spares a lockstep DUT the
+ * wake-up of a sleeping vCPU per step (~35-45 us on a VM) at the price of a busy CPU.
+ *
+ * socketcand sends are written behind: hal_can_send queues the frame's text and the next
+ * hal_can_recv (or hal_can_close, or a full queue) writes everything queued in one write, so
+ * that the frames a step produces reach the bus as one TCP segment and wake the bus once.
+ * A loop that sends and then waits for the bus (every agrihil app does) sees no difference;
+ * a send error then shows as HAL_CAN_ERROR from the next hal_can_recv.
  *
  * To port to an MCU, implement these five functions over the CAN peripheral's driver (hal_can_t
  * can hold whatever the driver needs; `spec` may be ignored). No allocation: the caller owns the
@@ -27,6 +37,7 @@ typedef struct {
 } hal_can_frame_t;
 
 #define HAL_CAN_RXBUF 4096
+#define HAL_CAN_TXBUF 2048
 #define HAL_CAN_ERRLEN 256
 
 typedef struct {
@@ -35,6 +46,14 @@ typedef struct {
     /* socketcand: bytes received but not yet parsed into messages */
     char rx[HAL_CAN_RXBUF];
     size_t rx_len;
+    /* socketcand: frames sent but not yet written (written by the next recv) */
+    char tx[HAL_CAN_TXBUF];
+    size_t tx_len;
+    /* socketcand busy polling: limit and current adaptive window, ns (0: off), and when
+     * data last came */
+    int64_t busy_poll_limit_ns;
+    int64_t busy_poll_window_ns;
+    int64_t busy_poll_last_ns;
     /* last error, for the caller to print */
     char error[HAL_CAN_ERRLEN];
 } hal_can_t;
@@ -61,5 +80,6 @@ int hal_socketcan_recv(hal_can_t *bus, hal_can_frame_t *frame, int64_t timeout_u
 int hal_socketcand_open(hal_can_t *bus, const bus_spec_t *spec);
 int hal_socketcand_send(hal_can_t *bus, const hal_can_frame_t *frame);
 int hal_socketcand_recv(hal_can_t *bus, hal_can_frame_t *frame, int64_t timeout_us);
+int hal_socketcand_flush(hal_can_t *bus);
 
 #endif

@@ -20,6 +20,12 @@ static void test_socketcand(void)
     CHECK(strcmp(s.host, "rig-pc.local") == 0 && strcmp(s.channel, "vcan1") == 0);
     CHECK_INT(bus_spec_parse("socketcand:::1:29536/can0", &s, err, sizeof err), 0);
     CHECK(strcmp(s.host, "::1") == 0 && s.port == 29536);
+    /* busy polling: off unless asked; other options are ignored */
+    CHECK_INT(s.busy_poll_us, 0);
+    CHECK_INT(bus_spec_parse("socketcand:h:1/can0,client=agrihil,busy_poll_us=300", &s, err,
+                             sizeof err), 0);
+    CHECK_INT(s.busy_poll_us, 300);
+    CHECK(strcmp(s.channel, "can0") == 0);
 }
 
 static void test_socketcan(void)
@@ -55,6 +61,9 @@ static void test_errors(void)
     CHECK(strstr(err, "channel") != NULL);
     CHECK_INT(bus_spec_parse("socketcand:h:1,oops", &s, err, sizeof err), -1);
     CHECK(strstr(err, "key=value") != NULL);
+    CHECK_INT(bus_spec_parse("socketcand:h:1,busy_poll_us=fast", &s, err, sizeof err), -1);
+    CHECK(strstr(err, "busy_poll_us") != NULL);
+    CHECK_INT(bus_spec_parse("socketcand:h:1,busy_poll_us=-5", &s, err, sizeof err), -1);
 }
 
 TEST_MAIN("bus_spec", test_socketcand, test_socketcan, test_errors)

@@ -44,8 +44,17 @@ def open_socketcan(spec: BusSpec) -> can.BusABC:
     return can.Bus(interface="socketcan", channel=spec.channel, **spec.options)
 
 
+#: spec options that select and tune agrihil's own socketcand client (hil.bus.socketcand)
+AGRIHIL_CLIENT_OPTIONS = ("batch", "max_batch", "busy_poll_us")
+
+
 def open_socketcand(spec: BusSpec) -> can.BusABC:
-    """``socketcand:<host>:<port>[/<channel>]``: a socketcand server, e.g. the software bus."""
+    """``socketcand:<host>:<port>[/<channel>]``: a socketcand server, e.g. the software bus.
+
+    python-can's client by default; agrihil's (:mod:`hil.bus.socketcand`) with
+    ``client=agrihil`` or with one of its options (``batch=true``, ``max_batch=N``,
+    ``busy_poll_us=N``).
+    """
     from hil.softbus.server import DEFAULT_CHANNEL, raise_if_unreachable
 
     target = spec.channel or ""
@@ -55,8 +64,20 @@ def open_socketcand(spec: BusSpec) -> can.BusABC:
         raise BusSpecError(f"socketcand spec needs host and port: 'socketcand:127.0.0.1:29536"
                            f"[/can0]', got 'socketcand:{target}'")
     port = int(port_text)
+    options = dict(spec.options)
+    client = str(options.pop("client", "python-can")).lower()
+    ours = {key: options.pop(key) for key in AGRIHIL_CLIENT_OPTIONS if key in options}
+    if client not in ("python-can", "agrihil"):
+        raise BusSpecError(f"socketcand spec: client={client!r}; known: python-can, agrihil")
+    if ours and client == "python-can" and "client" in spec.options:
+        raise BusSpecError(f"socketcand spec: {', '.join(ours)} need client=agrihil")
     raise_if_unreachable(host, port)
-    options = {"tcp_tune": True, **spec.options}
+    if ours or client == "agrihil":
+        from hil.bus.socketcand import SocketcandBus
+
+        options.pop("tcp_tune", None)  # always on in agrihil's client (TCP_NODELAY)
+        return SocketcandBus(channel or DEFAULT_CHANNEL, host, port, **ours, **options)
+    options = {"tcp_tune": True, **options}
     return can.Bus(interface="socketcand", host=host, port=port,
                    channel=channel or DEFAULT_CHANNEL, **options)
 

@@ -108,7 +108,12 @@ class ProcessDut(DutRunner):
         out = self.stdout_path.open("wb")
         err = self.stderr_path.open("wb")
         self._files = [out, err]
-        listener = open_bus(bus_spec) if launch.ready == "bootup" else None
+        # agrihil's socketcand client ends the software bus's 50 ms rawmode hold at once
+        # (python-can's client needs the hold): the boot-up frame is seen ~50 ms sooner
+        listen_spec = (f"{bus_spec},client=agrihil"
+                       if bus_spec.startswith("socketcand:") and "client=" not in bus_spec
+                       else bus_spec)
+        listener = open_bus(listen_spec) if launch.ready == "bootup" else None
         try:
             self.started_at = time.monotonic()
             try:
