@@ -1,0 +1,630 @@
+"""The examples in the docs are run by the tests (issue 7): a doc example that breaks fails CI.
+
+Every fenced code block of the documents in ``DOCS`` is extracted and handled by its language:
+
+``sh`` / ``bash`` / ``shell`` / ``console``
+    Each command line is run for real, in document order, as a reader would type it (a trailing
+    ``\\`` joins lines; ``# comments`` are not part of the command). A comment on the line, or on
+    comment-only lines right under it, that says ``exit N`` is the documented exit status and is
+    asserted; otherwise the line must exit 0. With ``exit N: a, b`` after a ``hil qualify``, every
+    named reason (``steady-state error`` -> ``steady_state_error``) must be in the name of a
+    failed measurement of the record.
+``python``
+    The block runs in a subprocess (``python block.py``). API sketches leave some names to the
+    reader (``seed``, ``n``, ``dt``, ``bus`` ...): ``PYTHON_PRELUDES`` defines them per block, and
+    nothing else is changed.
+``json`` / ``toml``
+    Data examples, checked by the function ``DATA_CHECKS`` names for the document: the record
+    example of ``docs/qualification-record.md`` must have the keys a real record has; the
+    tolerance file of ``ci/README.md`` must load with the gate's own loader.
+no language
+    Not examples (layouts, synopses); a line in one that looks like a command (``hil ...``,
+    ``python ...``, ``bash ...``, ``$ ...``) fails: tag the block.
+
+Where commands run, and the rules that adapt them (the only ones):
+
+1. **A scratch checkout.** Each document's commands run with ``cwd`` = a fresh directory under
+   ``tmp_path`` that mirrors the repository: every tracked top-level entry is a symlink to the
+   real one, except what examples write into, which is copied: ``ci/`` (baselines),
+   ``dut_profiles/``, and ``firmware/generated/`` (``firmware/`` itself is a real directory of
+   symlinks, so ``firmware/build`` lands in the scratch copy). Every output an example names
+   (``out``, ``qual``, ``bad``, ``runs/step``, ``base.json``, ``gate.md``,
+   ``ci/baselines/*.json``, ``firmware/build``) is therefore written under ``tmp_path``, never
+   into the repository; paths in the commands are not rewritten. The venv's ``bin`` comes first
+   on ``PATH``; ``GITHUB_STEP_SUMMARY`` is removed (``hil gate`` would append to CI's page) and
+   ``MPLBACKEND=Agg`` set.
+2. **Placeholders** of the docs are replaced token by token (``PLACEHOLDERS``): the example
+   controller ``fertilizer-mycontroller-firmware`` and ``<DUT>`` stand for the reference
+   firmware profile ``fertilizer-piecewise-pid-firmware``.
+3. **``hil bus serve``** runs in the background with ``--port 0`` (a free port, read from its
+   "listening on" line); ``--port P`` in the later lines of the block, P being the port the serve
+   line asked for, becomes that port. The server is stopped (SIGINT) at the end of the block.
+4. **``xdg-open FILE``** asserts that FILE exists and is not empty instead of opening it.
+5. **``hil qualify``** with the same arguments apart from ``--out`` runs once per test session:
+   a later identical line gets a copy of the first one's output directory and its exit status
+   (lockstep qualifications are bit-for-bit repeatable; this saves ~15 s per repeat).
+6. A line that needs a shell (``&&``, ``|``, ``>`` ...) is not run through one: it must be in
+   ``SKIPPED`` or have a rule here.
+
+``SKIPPED`` lists, per document, the lines that are not run, each with its reason. Any other
+line is run: a new example either runs or fails until it is listed, and a ``SKIPPED`` entry whose
+line left its document fails too. After a command, the outputs its document promises are checked
+(``hil qualify``: record.json, junit.xml, report.html; ``hil run``: record.json, bus.log,
+bus.asc, traces.npz, plot.png with ``--plot``; ``hil gate``: the ``--summary`` file, the
+baseline written by ``--update-baseline``; ``firmware/generate.sh``: files identical to the
+committed ones).
+
+``test_readme_main_job`` (marked ``slow``) runs the command that ``scripts/qualify.sh`` execs
+(README's main job, ~25 s), after checking that it is the one README quotes; the script itself
+reinstalls the venv first, so it is not run as is. Everything else is in the default set:
+~70 s on the 2-vCPU VM (three qualifications and the firmware build are most of it), ~95 s
+with the slow test.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shlex
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+
+DOCS = (
+    "README.md",
+    "docs/adding-a-controller.md",
+    "docs/qualification-record.md",
+    "docs/reference-controllers.md",   # no fenced examples (pseudo-code is indented): none to run
+    "ci/README.md",
+    "firmware/README.md",
+    "plant_emulators/fertilizer/README.md",
+    "plant_emulators/sowing_depth/README.md",
+)
+
+SKIPPED: dict[tuple[str, str], str] = {
+    ("README.md", "bash scripts/setup.sh && source .venv/bin/activate"):
+        "reinstalls the venv this test runs in (pip install -e); the test already runs inside it",
+    ("README.md", "bash scripts/qualify.sh"):
+        "its first step reinstalls the venv; test_readme_main_job (slow) checks that the script "
+        "execs the command README quotes and runs that command",
+    ("README.md", "bash scripts/test.sh"):
+        "CI's own command: the whole test suite, this file included (~3 min)",
+    ("ci/README.md", "git diff ci/baselines/"):
+        "reviews a change against the repository's history; the scratch checkout has none",
+}
+
+PLACEHOLDERS = {
+    "fertilizer-mycontroller-firmware": "fertilizer-piecewise-pid-firmware",
+    "<DUT>": "dut_profiles/fertilizer-piecewise-pid-firmware.toml",
+}
+
+#: names an API sketch leaves to the reader, per (document, n-th python block from 1)
+PYTHON_PRELUDES = {
+    ("plant_emulators/fertilizer/README.md", 1): '''\
+import can
+import numpy
+from plant_emulators.fertilizer.analog_output import AnalogOutputChannel
+from plant_emulators.fertilizer.config import load_rig_config
+from plant_emulators.fertilizer.flow_sensor import FlowSensor
+from plant_emulators.fertilizer.frames import FertilizerDatabase
+from plant_emulators.fertilizer.ground_speed import GroundSpeedModel
+from plant_emulators.fertilizer.physics import FertilizerPlant
+
+
+class _Bus:
+    def __init__(self):
+        self.sent = []
+
+    def send(self, msg):
+        self.sent.append(msg)
+
+
+bus = _Bus()
+seed, n, dt = 0, 100, 0.001
+raw_mv, counter = 5000, 0
+received_msg = can.Message(arbitration_id=0x710, data=[0x05], is_extended_id=False)
+''',
+    ("plant_emulators/sowing_depth/README.md", 1): "seed, n, dt = 0, 100, 0.001\n",
+}
+
+SHELL_LANGS = {"sh", "bash", "shell", "console"}
+SHELL_OPERATORS = {"&&", "||", "|", ";", ">", ">>", "<", "&", "2>", "2>&1"}
+#: files next to the scratch checkout's symlinks that examples write into
+COPIED = ("ci", "dut_profiles", "firmware/generated")
+#: the reference record the qualification-record example is compared with
+RECORD_QUALIFY = ["hil", "qualify", "dut_profiles/fertilizer-piecewise-pid-firmware.toml",
+                  "--bus", "softbus", "--out", "qual"]
+LINE_TIMEOUT_S = 600
+
+
+# ---------------------------------------------------------------------------------------------
+# extraction
+
+
+@dataclass
+class Block:
+    doc: str
+    lang: str
+    lineno: int                              # line of the opening fence
+    lines: list[tuple[int, str]]             # (line number, text)
+
+    @property
+    def text(self) -> str:
+        return "".join(t + "\n" for _, t in self.lines)
+
+
+@dataclass
+class ShellLine:
+    doc: str
+    lineno: int
+    text: str                                # the command, comments cut, whitespace collapsed
+    argv: list[str]
+    comment: str = ""
+
+    @property
+    def where(self) -> str:
+        return f"{self.doc}:{self.lineno}: {self.text}"
+
+    @property
+    def expected_exit(self) -> int:
+        m = re.search(r"\bexit (\d+)", self.comment)
+        return int(m.group(1)) if m else 0
+
+
+FENCE = re.compile(r"^```(.*)$")
+
+
+def blocks(doc: str) -> list[Block]:
+    out: list[Block] = []
+    current: Block | None = None
+    for no, line in enumerate((REPO / doc).read_text(encoding="utf-8").splitlines(), 1):
+        m = FENCE.match(line)
+        if current is None:
+            if m:
+                info = m.group(1).strip()
+                current = Block(doc, info.split()[0].lower() if info else "", no, [])
+        elif m and not m.group(1).strip():
+            out.append(current)
+            current = None
+        else:
+            current.lines.append((no, line))
+    assert current is None, f"{doc}:{current.lineno}: code block never closed"
+    return out
+
+
+def shell_lines(block: Block) -> list[ShellLine]:
+    out: list[ShellLine] = []
+    pending, start = "", 0
+    last_was_command = False
+    for no, raw in block.lines:
+        if not pending:
+            start = no
+        pending = f"{pending} {raw.strip()}" if pending else raw
+        if pending.rstrip().endswith("\\"):
+            pending = pending.rstrip()[:-1]
+            continue
+        logical, pending = pending, ""
+        cut = re.search(r"(?:^|\s)#", logical)
+        command = logical[:cut.start()] if cut else logical
+        comment = logical[cut.end():].strip() if cut else ""
+        if not command.strip():
+            if comment and last_was_command:          # a comment-only line under a command
+                out[-1].comment = f"{out[-1].comment} {comment}".strip()
+            last_was_command = last_was_command and bool(comment)
+            continue
+        out.append(ShellLine(block.doc, start, " ".join(command.split()),
+                             shlex.split(command), comment))
+        last_was_command = True
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# the scratch checkout and running commands
+
+
+def tracked_files() -> list[str]:
+    try:
+        listing = subprocess.run(["git", "-C", str(REPO), "ls-files", "-z"], check=True,
+                                 capture_output=True, timeout=60).stdout.decode()
+        files = [f for f in listing.split("\0") if f]
+    except (OSError, subprocess.SubprocessError):
+        files = []
+    if files:
+        return files
+    # not a git checkout: every entry but hidden ones and the outputs .gitignore names
+    ignored = {"out", "runs", "build", "dist", "__pycache__"}
+    return [str(p.relative_to(REPO)) for p in REPO.rglob("*")
+            if p.is_file() and not any(part.startswith(".") or part in ignored
+                                       or part.endswith(".egg-info")
+                                       for part in p.relative_to(REPO).parts)]
+
+
+def make_checkout(dest: Path, files: list[str]) -> Path:
+    """``dest`` mirrors the repository: symlinks, except ``COPIED`` (see the module docstring)."""
+
+    def populate(rel: str, target: Path) -> None:
+        prefix = f"{rel}/" if rel else ""
+        children = sorted({f[len(prefix):].split("/")[0] for f in files if f.startswith(prefix)})
+        target.mkdir(parents=True, exist_ok=True)
+        for child in children:
+            path = f"{prefix}{child}"
+            if path in COPIED:
+                if (REPO / path).is_dir():
+                    shutil.copytree(REPO / path, target / child, symlinks=True)
+                else:
+                    shutil.copy2(REPO / path, target / child)
+            elif any(c.startswith(f"{path}/") for c in COPIED):
+                populate(path, target / child)
+            elif (REPO / path).exists():
+                (target / child).symlink_to(REPO / path)
+
+    populate("", dest)
+    return dest
+
+
+def child_env() -> dict[str, str]:
+    env = dict(os.environ)
+    env.pop("GITHUB_STEP_SUMMARY", None)
+    env["PATH"] = str(Path(sys.executable).parent) + os.pathsep + env.get("PATH", "")
+    env["MPLBACKEND"] = "Agg"
+    return env
+
+
+@dataclass
+class Result:
+    returncode: int
+    stdout: str
+    stderr: str
+    seconds: float
+
+
+def run(argv: list[str], cwd: Path) -> Result:
+    t0 = time.monotonic()
+    try:
+        proc = subprocess.run(argv, cwd=cwd, env=child_env(), capture_output=True, text=True,
+                              timeout=LINE_TIMEOUT_S, stdin=subprocess.DEVNULL)
+    except FileNotFoundError as exc:                   # as a shell says: command not found
+        return Result(127, "", str(exc), time.monotonic() - t0)
+    return Result(proc.returncode, proc.stdout, proc.stderr, time.monotonic() - t0)
+
+
+def option(argv: list[str], name: str, default: str | None = None) -> str | None:
+    for i, token in enumerate(argv[:-1]):
+        if token == name:
+            return argv[i + 1]
+    return default
+
+
+def without_option(argv: list[str], name: str) -> tuple[str, ...]:
+    out, skip = [], False
+    for i, token in enumerate(argv):
+        if skip:
+            skip = False
+        elif token == name and i + 1 < len(argv):
+            skip = True
+        else:
+            out.append(token)
+    return tuple(out)
+
+
+class QualifyMemo:
+    """Rule 5: one real run per distinct ``hil qualify`` line (``--out`` aside) per session."""
+
+    def __init__(self, root: Path) -> None:
+        self.root = root
+        self.done: dict[tuple[str, ...], tuple[Result, Path]] = {}
+
+    def run(self, argv: list[str], cwd: Path) -> tuple[Result, bool]:
+        out = cwd / (option(argv, "--out", "out") or "out")
+        key = without_option(argv, "--out")
+        if key in self.done:
+            result, kept = self.done[key]
+            if out.exists():
+                shutil.rmtree(out)
+            if kept.exists():
+                shutil.copytree(kept, out)
+            return result, True
+        result = run(argv, cwd)
+        kept = self.root / f"qualify-{len(self.done)}"
+        if out.exists():
+            shutil.copytree(out, kept)
+        self.done[key] = (result, kept)
+        return result, False
+
+
+@pytest.fixture(scope="session")
+def qualify_memo(tmp_path_factory: pytest.TempPathFactory) -> QualifyMemo:
+    return QualifyMemo(tmp_path_factory.mktemp("qualify-memo"))
+
+
+@pytest.fixture(scope="session")
+def repo_files() -> list[str]:
+    return tracked_files()
+
+
+def explain(line: ShellLine, argv: list[str], result: Result) -> str:
+    def tail(text: str) -> str:
+        return "\n".join(text.strip().splitlines()[-25:])
+
+    return (f"{line.where}\n  ran: {shlex.join(argv)}\n  exit {result.returncode}, documented "
+            f"{line.expected_exit}\n--- stdout (tail)\n{tail(result.stdout)}\n"
+            f"--- stderr (tail)\n{tail(result.stderr)}")
+
+
+# ---------------------------------------------------------------------------------------------
+# what a document's commands promise
+
+
+def check_outputs(line: ShellLine, argv: list[str], cwd: Path, result: Result) -> None:
+    def must_exist(rel: str, what: str) -> None:
+        assert (cwd / rel).is_file() and (cwd / rel).stat().st_size > 0, (
+            f"{line.where}\n  {what} {rel} was not written")
+
+    if argv[:2] == ["hil", "qualify"] and result.returncode in (0, 1):
+        out = option(argv, "--out", "out")
+        for name in ("record.json", "junit.xml", "report.html"):
+            must_exist(f"{out}/{name}", "hil qualify:")
+        reasons = line.comment.partition(":")[2] if result.returncode == 1 else ""
+        if reasons.strip():
+            record = json.loads((cwd / f"{out}/record.json").read_text())
+            failed = {m["name"] for m in record["measurements"]
+                      if m["outcome"] in ("fail", "error")}
+            for reason in reasons.split(","):
+                token = re.sub(r"[-\s]+", "_", reason.strip())
+                assert any(token in name for name in failed), (
+                    f"{line.where}\n  documented to fail on {reason.strip()!r}; the failed "
+                    f"measurements are {sorted(failed)}")
+    elif argv[:2] == ["hil", "run"] and "--list-scenarios" not in argv and result.returncode == 0:
+        out = option(argv, "--out", f"runs/{option(argv, '--scenario')}")
+        names = ["record.json", "bus.log", "bus.asc", "traces.npz"]
+        names += ["plot.png"] * ("--plot" in argv) + ["traces.csv"] * ("--csv" in argv)
+        for name in names:
+            must_exist(f"{out}/{name}", "hil run:")
+    elif argv == ["firmware/generate.sh"]:
+        # "an unchanged database regenerates identical files"
+        fresh, committed = cwd / "firmware/generated", REPO / "firmware/generated"
+        differ = [p.name for p in sorted(committed.iterdir())
+                  if p.read_bytes() != (fresh / p.name).read_bytes()]
+        assert not differ, f"{line.where}\n  regenerated files differ: {differ}"
+    elif argv[:2] == ["hil", "gate"] and result.returncode == 0:
+        summary = option(argv, "--summary")
+        if summary:
+            must_exist(summary, "hil gate --summary:")
+        if "--update-baseline" in argv:
+            must_exist(option(argv, "--baseline") or "", "hil gate --update-baseline:")
+
+
+# ---------------------------------------------------------------------------------------------
+# the runner of one document
+
+
+@dataclass
+class Server:
+    proc: subprocess.Popen[bytes]
+    asked_port: str
+    port: str
+    log: Path
+
+
+@dataclass
+class DocRunner:
+    doc: str
+    cwd: Path
+    scratch: Path
+    memo: QualifyMemo
+    ran: list[str] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+    python_blocks: int = 0
+
+    def block(self, block: Block) -> None:
+        if block.lang in SHELL_LANGS:
+            server: Server | None = None
+            try:
+                for line in shell_lines(block):
+                    server = self.line(line, server) or server
+            finally:
+                if server is not None:
+                    self.stop(server)
+        elif block.lang in ("python", "py"):
+            self.python(block)
+        elif block.lang in ("json", "toml"):
+            check = DATA_CHECKS.get((self.doc, block.lang))
+            assert check is not None, (
+                f"{self.doc}:{block.lineno}: a ```{block.lang} block without a check in "
+                "DATA_CHECKS: add one (or make it an untagged block if it is not an example)")
+            check(self, block)
+            self.ran.append(f"{self.doc}:{block.lineno}: ```{block.lang} block ({check.__name__})")
+        elif block.lang == "":
+            for no, text in block.lines:
+                assert not re.match(r"\s*(\$ |hil |python3? |bash )", text), (
+                    f"{self.doc}:{no}: a command in an untagged code block: tag it ```sh so "
+                    "that it runs")
+        else:
+            pytest.fail(f"{self.doc}:{block.lineno}: no rule for ```{block.lang} blocks")
+
+    def line(self, line: ShellLine, server: Server | None) -> Server | None:
+        reason = SKIPPED.get((self.doc, line.text))
+        if reason is not None:
+            self.skipped.append(f"{line.where}  [{reason}]")
+            return None
+        argv = [self.placeholder(t) for t in line.argv]
+        if server is not None and "--port" in argv:
+            i = argv.index("--port")
+            if i + 1 < len(argv) and argv[i + 1] == server.asked_port:
+                argv[i + 1] = server.port
+        assert not SHELL_OPERATORS & set(argv), (
+            f"{line.where}\n  needs a shell: give it a rule in this test or list it in SKIPPED")
+        if argv[:3] == ["hil", "bus", "serve"]:
+            return self.serve(line, argv)
+        if argv[0] == "xdg-open":
+            target = self.cwd / argv[1]
+            assert target.is_file() and target.stat().st_size > 0, (
+                f"{line.where}\n  nothing to open: {argv[1]} does not exist")
+            self.ran.append(f"{line.where}  [checked the file exists]")
+            return None
+        if argv[:2] == ["hil", "qualify"]:
+            result, reused = self.memo.run(argv, self.cwd)
+        else:
+            result, reused = run(argv, self.cwd), False
+        assert result.returncode == line.expected_exit, explain(line, argv, result)
+        check_outputs(line, argv, self.cwd, result)
+        note = "  [same qualification as earlier: output reused]" if reused else ""
+        self.ran.append(f"{line.where}  ({result.seconds:.1f} s, exit {result.returncode}){note}")
+        return None
+
+    @staticmethod
+    def placeholder(token: str) -> str:
+        for old, new in PLACEHOLDERS.items():
+            token = token.replace(old, new)
+        return token
+
+    def serve(self, line: ShellLine, argv: list[str]) -> Server:
+        asked = option(argv, "--port", "29536") or "29536"
+        argv = [*without_option(argv, "--port"), "--port", "0"]
+        log = self.scratch / f"serve-{line.lineno}.out"
+        with log.open("wb") as sink:
+            proc = subprocess.Popen(argv, cwd=self.cwd, env=child_env(), stdout=sink,
+                                    stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:
+            m = re.search(r"listening on [^\s:]+:(\d+)", log.read_text(errors="replace"))
+            if m:
+                self.ran.append(f"{line.where}  [background, --port 0 -> {m.group(1)}]")
+                return Server(proc, asked, m.group(1), log)
+            if proc.poll() is not None:
+                break
+            time.sleep(0.05)
+        server = Server(proc, asked, "", log)
+        self.stop(server)
+        pytest.fail(f"{line.where}\n  the server did not start:\n{log.read_text()}")
+
+    @staticmethod
+    def stop(server: Server) -> None:
+        if server.proc.poll() is None:
+            server.proc.send_signal(signal.SIGINT)
+            try:
+                server.proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                server.proc.kill()
+                server.proc.wait(timeout=10)
+                pytest.fail(f"hil bus serve did not stop on SIGINT:\n{server.log.read_text()}")
+
+    def python(self, block: Block) -> None:
+        self.python_blocks += 1
+        prelude = PYTHON_PRELUDES.get((self.doc, self.python_blocks), "")
+        script = self.scratch / f"block-{block.lineno}.py"
+        script.write_text(prelude + "\n# --- the document's block ---\n" + block.text)
+        result = run([sys.executable, str(script)], self.cwd)
+        assert result.returncode == 0, (
+            f"{self.doc}:{block.lineno}: python block failed (exit {result.returncode})\n"
+            f"{result.stderr[-3000:]}")
+        self.ran.append(f"{self.doc}:{block.lineno}: ```python block ({result.seconds:.1f} s)")
+
+
+# ---------------------------------------------------------------------------------------------
+# data examples
+
+
+def check_record_example(runner: DocRunner, block: Block) -> None:
+    """The documented record has the keys of a real one (top level and each nested object)."""
+    text = re.sub(r"\s+//[^\n]*", "", block.text)
+    example = json.loads(text)
+    result, _ = runner.memo.run(list(RECORD_QUALIFY), runner.cwd)
+    assert result.returncode == 0, f"the reference qualification failed:\n{result.stderr[-3000:]}"
+    real = json.loads((runner.cwd / "qual/record.json").read_text())
+    assert example["schema"] == real["schema"]
+    pairs = [("record", example, real)]
+    pairs += [(key, example[key], real[key]) for key in ("dut", "rig")]
+    pairs += [(f"{key}[]", example[key][0], real[key][0])
+              for key in ("measurements", "tests", "runs")]
+    for where, documented, actual in pairs:
+        assert set(documented) == set(actual), (
+            f"{runner.doc}:{block.lineno}: keys of {where}: documented but not written "
+            f"{sorted(set(documented) - set(actual))}, written but not documented "
+            f"{sorted(set(actual) - set(documented))}")
+
+
+def check_tolerance_example(runner: DocRunner, block: Block) -> None:
+    """The tolerance file example loads with the gate's loader (names from the catalogue)."""
+    from hil.gate.tolerance import load_tolerances
+
+    path = runner.scratch / f"tolerances-{block.lineno}.toml"
+    path.write_text(block.text)
+    load_tolerances(path)
+
+
+DATA_CHECKS: dict[tuple[str, str], Callable[[DocRunner, Block], None]] = {
+    ("docs/qualification-record.md", "json"): check_record_example,
+    ("ci/README.md", "toml"): check_tolerance_example,
+}
+
+
+# ---------------------------------------------------------------------------------------------
+# the tests
+
+
+@pytest.fixture
+def checkout(tmp_path: Path, repo_files: list[str]) -> Iterator[Path]:
+    yield make_checkout(tmp_path / "checkout", repo_files)
+
+
+@pytest.mark.parametrize("doc", DOCS)
+def test_doc_examples(doc: str, checkout: Path, tmp_path: Path,
+                      qualify_memo: QualifyMemo) -> None:
+    runner = DocRunner(doc, checkout, tmp_path, qualify_memo)
+    for block in blocks(doc):
+        runner.block(block)
+    print(f"\n{doc}: {len(runner.ran)} run, {len(runner.skipped)} skipped")
+    for entry in runner.ran:
+        print(f"  ran   {entry}")
+    for entry in runner.skipped:
+        print(f"  skip  {entry}")
+
+
+def test_skip_table_is_current() -> None:
+    """A skipped line that left its document is a stale entry (and hides nothing)."""
+    present = {(doc, line.text) for doc in DOCS for block in blocks(doc)
+               if block.lang in SHELL_LANGS for line in shell_lines(block)}
+    stale = [f"{doc}: {text}" for doc, text in SKIPPED if (doc, text) not in present]
+    assert not stale, f"SKIPPED entries no document has any more: {stale}"
+    assert all(doc in DOCS for doc, _ in PYTHON_PRELUDES), "a prelude for an unlisted document"
+
+
+def test_every_document_with_examples_is_listed(repo_files: list[str]) -> None:
+    """A Markdown file with tagged code blocks must be in DOCS, so its examples run."""
+    unlisted = []
+    for name in repo_files:
+        if name.endswith(".md") and name not in DOCS and (REPO / name).is_file():
+            langs = {b.lang for b in blocks(name)} - {""}
+            if langs:
+                unlisted.append(f"{name} ({', '.join(sorted(langs))})")
+    assert not unlisted, f"documents with examples that no test runs (add them to DOCS): {unlisted}"
+
+
+@pytest.mark.slow
+def test_readme_main_job(checkout: Path) -> None:
+    """README's main job: what ``bash scripts/qualify.sh`` execs, run as documented (~25 s)."""
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    assert any(line.text == "bash scripts/qualify.sh" for block in blocks("README.md")
+               if block.lang in SHELL_LANGS for line in shell_lines(block))
+    quoted = re.search(r"main job runs\s+`([^`]+)`", " ".join(readme.split()))
+    assert quoted, "README no longer says which command the main job runs"
+    script = (REPO / "scripts/qualify.sh").read_text(encoding="utf-8")
+    execs = re.search(r"^exec (.*?)(?: \"\$@\")?$", script, re.M)
+    assert execs and execs.group(1) == quoted.group(1), (
+        f"scripts/qualify.sh execs {execs and execs.group(1)!r}, README says {quoted.group(1)!r}")
+    argv = shlex.split(quoted.group(1))
+    result = run(argv, checkout)
+    line = ShellLine("scripts/qualify.sh", 0, quoted.group(1), argv, "exit 0")
+    assert result.returncode == 0, explain(line, argv, result)
+    check_outputs(line, argv, checkout, result)
