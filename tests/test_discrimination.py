@@ -34,15 +34,18 @@ EXPECTED: dict[str, dict[str, int]] = {
     # runs 30 g/s whatever the terminal says: the accuracy and the steady state are off
     "fertilizer-ignores-setpoint-daemon": {"flow.step.steady_state_error": 3,
                                            "flow.bench.accuracy": 3},
-    # the feedforward alone: the fertilizer's ~3.5 % density deficit is never corrected
+    # the feedforward alone on the nominal (uncalibrated) map: the fertilizer's ~3.5 %
+    # density deficit is never corrected
     "fertilizer-no-integral-daemon": {"flow.step.steady_state_error": 3,
                                       "flow.bench.accuracy": 3},
     # [F]'s published gains on a physical meter: large overshoot
     "fertilizer-paper-literal-daemon": {"flow.step.overshoot": 2,
                                         "flow.bench.accuracy": 2},
-    # a 3 s loop: slow to correct the deficit
-    "fertilizer-slow-period-daemon": {"flow.step.response_time": 3,
-                                      "flow.bench.accuracy": 3},
+    # a 3 s loop with the reference's calibrated map: where the map is off its slow
+    # corrections limit-cycle (23 g/s: response ~16 s, overshoot, steady-state error); at
+    # 34/44 g/s the feedforward alone lands in the band, and the bench accuracy passes
+    "fertilizer-slow-period-daemon": {"flow.step.response_time": 1,
+                                      "flow.step.steady_state_error": 1},
 }
 
 
