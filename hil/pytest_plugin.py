@@ -16,7 +16,8 @@ records a :class:`~hil.measurements.Measurement` with the profile's limits.
 
 Markers, validated at collection: ``hil_rig(name)`` (the test is for that rig; it is skipped,
 with the reason, when the DUT is wired to another) and ``hil_suite(name)`` (``fast``, ``full``,
-``robustness``). A test passes when its body passes *and* none of its measurements failed:
+``robustness``, ``busload``: real-time runs on a loaded bus, ~1 min each). A test passes
+when its body passes *and* none of its measurements failed:
 the plugin turns a failed measurement into a failed test, and a run with invalid bench timing
 into a skipped test (the verdict ``invalid-bench``, never a DUT failure). At the end of the
 session the qualification record (``record.json``, see docs/qualification-record.md) and the
@@ -49,7 +50,7 @@ from hil.record.recorder import versions
 from hil.rig import Rig, RunOptions, RunResult, load_rig, run_scenario
 from hil.rig.scenario import Scenario
 
-SUITES = ("fast", "full", "robustness")
+SUITES = ("fast", "full", "robustness", "busload")
 SCHEMA = "agrihil.qualification/1"
 
 
@@ -162,23 +163,28 @@ class QualificationSession:
     # --- runs ---------------------------------------------------------------------------------
     def run(self, nodeid: str, rig_cls: type[Rig], scenario: Scenario | str, *,
             label: str = "", seed: int | None = None, profile: DutProfile | None = None,
-            bus: str | None = None, step_timeout_s: float = 5.0) -> RunResult:
+            bus: str | None = None, clock: str | None = None,
+            step_timeout_s: float = 5.0) -> RunResult:
+        """One scenario run of ``profile`` (default: the DUT under qualification), cached.
+        ``bus``/``clock`` override the session's (a suite that only means something in real
+        time, such as bus load, runs real time even in a lockstep qualification)."""
         profile = profile or self.profile
+        clock = clock or self.clock
         if isinstance(scenario, str):
             scenario = rig_cls.load_scenario(scenario)
         base = scenario.seed if seed is None else seed
         seed_used = base + (self.seed or 0)
         bus = bus or self.bus
         key = (rig_cls, repr(scenario), seed_used, profile.name, profile.sha256, bus,
-               self.clock)
+               clock)
         cached = self.runs.get(key)
         if cached is not None:
             return cached.result
         rel = f"runs/{_slug(nodeid)}{'-' + _slug(label) if label else ''}"
         out_dir = self.report_dir / rel
-        dut, build = make_dut(profile, bus=bus, clock=self.clock, log_dir=out_dir)
+        dut, build = make_dut(profile, bus=bus, clock=clock, log_dir=out_dir)
         result = run_scenario(rig_cls, scenario, dut, RunOptions(
-            out_dir=out_dir, clock=self.clock, bus=bus, seed=seed_used,
+            out_dir=out_dir, clock=clock, bus=bus, seed=seed_used,
             step_timeout_s=step_timeout_s,
             # the rig is wired as the DUT under qualification says (a baseline run too)
             **profile_run_options(profile, rig_from=self.profile),

@@ -37,7 +37,8 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
     add_bus_clock(qualify)
     qualify.add_argument("--suite", default=DEFAULT_SUITES,
                          help=f"comma-separated suites: fast, full (the papers' 3 repeats), "
-                              f"robustness, all (default: {DEFAULT_SUITES})")
+                              f"robustness, busload (real time on a bus loaded near its "
+                              f"bit rate, ~1 min), all (default: {DEFAULT_SUITES})")
     qualify.add_argument("--out", default="out", help="output directory (default: out)")
     qualify.add_argument("--seed", type=int, default=None,
                          help="added to every scenario's seed (default: 0)")

@@ -41,6 +41,9 @@ class Rig(ABC):
     control_period_s: float = 0.1
     #: how often the traces get a row
     trace_period_s: float = 0.01
+    #: the bit rate of the rig's bus (ISO 11783: 250 kbit/s): the embedded software bus is
+    #: paced at it when a scenario loads the bus
+    bitrate_bps: int = 250_000
     #: scenario inputs the rig takes: name → unit
     inputs: ClassVar[dict[str, str]] = {}
     #: faults the rig can inject: name → what it does

@@ -15,8 +15,8 @@ from __future__ import annotations
 import math
 import time
 import uuid
-from collections.abc import Callable
-from contextlib import ExitStack
+from collections.abc import Callable, Iterator
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
@@ -33,6 +33,7 @@ from hil.errors import BusError, ConfigError, StepTimeoutError
 from hil.record import Recorder, Verdict
 from hil.record.traces import write_npz
 from hil.rig.base import Rig, RigContext
+from hil.rig.busload import BusLoad
 from hil.rig.scenario import Scenario
 
 #: lockstep on the embedded software bus: the rig polls for the DUT's answer this long before
@@ -56,6 +57,40 @@ class RunOptions:
     #: floods the bus); a profile's timing.max_frames_per_period. None: no limit
     max_dut_frames_per_period: int | None = None
     extra_meta: dict[str, Any] = field(default_factory=dict)
+
+
+def bus_load_refusal(bus: str, clock: str) -> str | None:
+    """Why ``bus``/``clock`` cannot carry a bus load (None: it can). Load needs real time and
+    a wire with a bit rate: the paced software bus or a physical bus."""
+    if clock != "realtime":
+        return "needs the realtime clock (lockstep time has no wire to load)"
+    if bus in ("inline", "virtual") or bus.startswith("virtual:"):
+        return f"needs a bus with a bit rate; {bus!r} has none (use softbus)"
+    if bus.startswith("socketcan:vcan"):
+        return f"needs a bus with a bit rate; {bus} is a kernel vcan, which has none"
+    return None
+
+
+def _check_bus_load(scenario: Scenario, options: RunOptions) -> None:
+    if not scenario.bus_load:
+        return
+    why = bus_load_refusal(options.bus, options.clock)
+    if why:
+        raise ConfigError(f"scenario {scenario.name}: bus_load = {scenario.bus_load} {why}",
+                          key="bus_load")
+
+
+@contextmanager
+def _start_bus_load(spec: str, fraction: float, bitrate_bps: int,
+                    rec: Recorder) -> Iterator[BusLoad]:
+    """Other ECUs' traffic on the bus, from a node of its own, for the rest of the run."""
+    load_bus = open_bus(spec)
+    try:
+        with BusLoad(load_bus, fraction, bitrate_bps) as load:
+            rec.meta["bus_load"] = load.describe()
+            yield load
+    finally:
+        load_bus.shutdown()
 
 
 @dataclass
@@ -99,6 +134,8 @@ class _Loop:
         #: set by run_scenario: power-cycles the DUT (scenario event dut = "restart")
         self.restart_dut: Callable[[], dict[str, Any]] | None = None
         self._flood_limit = options.max_dut_frames_per_period
+        #: arbitration ids of other nodes on the bus (a bus load generator): logged, not handled
+        self.foreign_ids: frozenset[int] = frozenset()
         self._flood_window = -1
         self._flood_count = 0
 
@@ -127,6 +164,8 @@ class _Loop:
     def intake(self, msg: can.Message) -> None:
         self.frames_rx += 1
         self._log(msg, rx=True)
+        if msg.arbitration_id in self.foreign_ids and msg.is_extended_id:
+            return  # another node's traffic (bus load): logged, neither rig's nor DUT's
         if self._flood_limit is not None:
             self._count_for_flood(msg)
         if msg.is_error_frame:
@@ -273,11 +312,15 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
                      **options.extra_meta})
     with rec, ExitStack() as stack:
         spec = options.bus
+        _check_bus_load(scenario, options)
         local_bus: Callable[[], can.BusABC] | None = None
+        foreign_ids: frozenset[int] = frozenset()
         if spec == "softbus":
             from hil.softbus import SoftwareBus  # only here: its import costs ~15 ms
 
-            softbus = stack.enter_context(SoftwareBus(port=0))
+            # a loaded bus is paced at the rig's bit rate: load is only real on a real wire
+            bitrate = rig_cls.bitrate_bps if scenario.bus_load else None
+            softbus = stack.enter_context(SoftwareBus(port=0, bitrate=bitrate))
             spec = softbus.spec()
             stack.callback(lambda: rec.meta.__setitem__("softbus", softbus.stats()))
             if options.clock == "lockstep":
@@ -310,9 +353,14 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
         else:
             bus = local_bus() if local_bus is not None else open_bus(spec)
             dut.start(spec, dut_env)
+            if scenario.bus_load:
+                load = stack.enter_context(_start_bus_load(spec, scenario.bus_load,
+                                                           rig_cls.bitrate_bps, rec))
+                foreign_ids = frozenset(f.arbitration_id for f in load.schedule)
         stack.callback(bus.shutdown)
         stack.callback(lambda: rec.meta.__setitem__("dut", dut.stop()))
         loop = _Loop(rig, scenario, bus, rec, options.clock, options)
+        loop.foreign_ids = foreign_ids
         loop.restart_dut = lambda: dut.restart(spec, dut_env)
         try:
             loop.run()

@@ -65,11 +65,17 @@ class Scenario:
     speed_profile: tuple[tuple[float, float], ...] = ()
     events: tuple[Event, ...] = ()
     tags: tuple[str, ...] = ()
+    #: other ECUs' traffic added to the bus, as a fraction of the rig's bit rate
+    #: (:mod:`hil.rig.busload`); needs real time and a bus with a bit rate. 0: none
+    bus_load: float = 0.0
 
     def __post_init__(self) -> None:
         if self.duration_s <= 0:
             raise ConfigError(f"duration must be positive, got {self.duration_s}",
                               key="duration_s")
+        if not 0.0 <= self.bus_load < 1.0:
+            raise ConfigError(f"bus_load is a fraction of the bit rate in [0, 1), got "
+                              f"{self.bus_load}", key="bus_load")
         times = [t for t, _ in self.speed_profile]
         if times != sorted(times):
             raise ConfigError("speed_profile times must increase", key="speed_profile")

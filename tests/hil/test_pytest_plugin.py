@@ -117,7 +117,7 @@ def test_plugin_passes_a_good_dut(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(("suite", "message"), [
     (SUITE.replace('hil_suite("robustness")', 'hil_suite("nightly")'),
-     "hil_suite marker needs one of fast, full, robustness"),
+     "hil_suite marker needs one of fast, full, robustness, busload"),
     (SUITE.replace('hil_rig("sowing_depth")', 'hil_rig("sprayer")'),
      "hil_rig marker needs one rig name"),
 ])
