@@ -4,8 +4,8 @@ A qualification suite is only as good as what it rejects: ``dut_profiles/must_fa
 these and the framework's tests check that each fails on the measurement its defect should
 break. Defects (``--defect KIND:ARG``):
 
-* ``slow-period:N`` — computes on every N-th SYNC only and repeats its last output in between
-  (a controller whose loop runs N times slower than its period);
+* ``slow-period:N`` — computes on every N-th control step only and repeats its last output in
+  between (a controller whose loop runs N times slower than its period);
 * ``dies-after:S`` — crashes after S seconds of control (an uncaught error: the daemon exits 1);
 * ``ignores-setpoint:G`` — fertilizer: runs every setpoint as a bench target of G g/s per row.
 
@@ -13,6 +13,9 @@ break. Defects (``--defect KIND:ARG``):
 
     python -m reference_controllers.misbehaving --defect dies-after:10 \\
         --controller fertilizer-piecewise-pid --bus SPEC --sync --param mode=physical
+
+In real time (``--period-ms`` = the controller's period) the defects count control steps the
+same way.
 """
 
 from __future__ import annotations
@@ -52,8 +55,18 @@ class _Wrapper(Controller):
             return self.on_step(msg)
         return self.inner.on_frame(msg)
 
-    def on_step(self, msg: can.Message) -> list[can.Message]:
+    def on_tick(self) -> list[can.Message]:
+        """A control step in real time (free-running): the same step as a SYNC's."""
+        self.steps += 1
+        return self.on_step(None)
+
+    def _inner_step(self, msg: can.Message | None) -> list[can.Message]:
+        if msg is None:
+            return self.inner.on_tick()  # type: ignore[attr-defined, no-any-return]
         return self.inner.on_frame(msg)
+
+    def on_step(self, msg: can.Message | None) -> list[can.Message]:
+        return self._inner_step(msg)
 
 
 class SlowPeriod(_Wrapper):
@@ -64,9 +77,9 @@ class SlowPeriod(_Wrapper):
         self.every = every
         self.last: list[can.Message] = []
 
-    def on_step(self, msg: can.Message) -> list[can.Message]:
+    def on_step(self, msg: can.Message | None) -> list[can.Message]:
         if (self.steps - 1) % self.every == 0:
-            self.last = self.inner.on_frame(msg)
+            self.last = self._inner_step(msg)
         return list(self.last)
 
 
@@ -75,10 +88,10 @@ class DiesAfter(_Wrapper):
         super().__init__(inner, period_s)
         self.after_s = after_s
 
-    def on_step(self, msg: can.Message) -> list[can.Message]:
+    def on_step(self, msg: can.Message | None) -> list[can.Message]:
         if self.steps * self.period_s > self.after_s:
             raise RuntimeError(f"simulated firmware crash after {self.after_s:g} s of control")
-        return self.inner.on_frame(msg)
+        return self._inner_step(msg)
 
 
 class IgnoresSetpoint(_Wrapper):
@@ -131,8 +144,12 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if not args.bus:
         parser.error("no bus: give --bus SPEC or set AGRIHIL_BUS")
-    if not args.sync:
-        parser.error("the must-fail controllers run in lockstep only (--sync)")
+    if not args.sync and args.period_ms is None:
+        parser.error("give --sync (lockstep) or --period-ms (real time)")
+    if args.period_ms is not None and args.period_ms / 1e3 != CONTROLLERS[args.controller].period_s:
+        parser.error(f"--period-ms must be the controller's period, "
+                     f"{CONTROLLERS[args.controller].period_s * 1e3:g} ms: the defects count "
+                     f"control steps")
     period_s = CONTROLLERS[args.controller].period_s
     try:
         params = parse_params(args.param)
@@ -142,7 +159,8 @@ def main(argv: list[str] | None = None) -> int:
             value = params.pop(key, given)
             if value != given:
                 raise ValueError(f"--param {key}={value} disagrees with --{key} {given}")
-        controller = with_defect(make_controller(args.controller, params, step_on_sync=True),
+        controller = with_defect(make_controller(args.controller, params,
+                                                 step_on_sync=args.sync),
                                  args.defect, period_s)
     except (ParamError, ValueError) as exc:
         parser.error(str(exc))
@@ -154,7 +172,7 @@ def main(argv: list[str] | None = None) -> int:
     logging.getLogger("misbehaving").info("%s with defect %s on %s", args.controller,
                                           args.defect, args.bus)
     try:
-        Daemon(controller, bus, sync=True, period_s=period_s, stop=stop).run()
+        Daemon(controller, bus, sync=args.sync, period_s=period_s, stop=stop).run()
     except Exception as exc:
         logging.getLogger("misbehaving").error("controller failed: %s: %s",
                                                type(exc).__name__, exc)
