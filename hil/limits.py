@@ -44,6 +44,10 @@ _SPECS = (
                     "time to re-enter the +/-5 % band after the target returns in range"),
     MeasurementSpec("flow.restart.recovery_time", "s", "fertilizer",
                     "time after a DUT restart until the true flow is back in the +/-5 % band"),
+    MeasurementSpec("flow.silence.recovery_time", "s", "fertilizer",
+                    "time after the DUT's frames reach the rig again (5 s of cut wire, the "
+                    "analog module at 0 V meanwhile) until the true flow is back in the "
+                    "+/-5 % band"),
     MeasurementSpec("flow.busload.accuracy", "%", "fertilizer",
                     "bench accuracy on a 250 kbit/s bus loaded near its bit rate"),
     # sowing depth rig, [D]

@@ -2,9 +2,10 @@
 suites, and each must-fail profile (``dut_profiles/must_fail/fertilizer-*.toml``) fails them on
 the measurement its defect breaks.
 
-Each case is ``hil qualify PROFILE --bus inline -k "flow_step or bench_accuracy"`` in a
-subprocess (the way a user's CI meets it), judged from its ``record.json``. The depth profiles
-have their own file (``tests/test_suites_depth_discrimination.py``).
+Each case is ``hil qualify PROFILE --bus inline -k "flow_step or bench_accuracy or
+dut_silence"`` in a subprocess (the way a user's CI meets it), judged from its
+``record.json``. The depth profiles have their own file
+(``tests/test_suites_depth_discrimination.py``).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from hil.dut.profile import load_profile
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "dut_profiles" / "fertilizer-piecewise-pid-daemon.toml"
 MUST_FAIL = ROOT / "dut_profiles" / "must_fail"
-SELECTION = "flow_step or bench_accuracy"
+SELECTION = "flow_step or bench_accuracy or dut_silence"
 NOT_PASSED = {"fail", "error"}
 
 #: profile stem -> measurement -> how many of its conditions (at least) must not pass
@@ -46,6 +47,8 @@ EXPECTED: dict[str, dict[str, int]] = {
     # 34/44 g/s the feedforward alone lands in the band, and the bench accuracy passes
     "fertilizer-slow-period-daemon": {"flow.step.response_time": 1,
                                       "flow.step.steady_state_error": 1},
+    # integrates any error: passes every step test, winds up while its wire is cut
+    "fertilizer-winds-up-daemon": {"flow.silence.recovery_time": 1},
 }
 
 

@@ -4,7 +4,11 @@
   must carry on with the other rows (accuracy over the run, eq. 15);
 * the machine stops for 5 s in a field run: grams metered while standing still;
 * the target exceeds the meter's capacity, then returns into range: the time to be back in
-  the +/-5 % band (an integrator that wound up while saturated takes long to unwind).
+  the +/-5 % band (an integrator that wound up while saturated takes long to unwind);
+* the controller goes silent (its wire is cut for 5 s; the analog module falls back to 0 V
+  and the flow stops while the controller still sees it fall), then is heard again: the time
+  to be back in the band (a controller that integrated the missing flow overshoots);
+* the controller is power-cycled mid-run: the time to be back in the band.
 """
 
 from __future__ import annotations
@@ -73,3 +77,19 @@ def test_dut_restart(hil_run, hil_measure) -> None:
     restarts = [e for e in result.record["events"] if e["kind"] == "dut-restart"]
     hil_measure("flow.restart.recovery_time", recovery, run=result,
                 note=f"{len(restarts)} restart(s); 0 s: the flow never left the ±5 % band")
+
+
+SILENCE_END_S = 18.0       # fault-controller-silent-recovery: the wire is reconnected here
+SILENCE_TARGET_GPS = 34.0
+
+
+def test_dut_silence(hil_run, hil_measure) -> None:
+    """The controller's frames stop reaching the rig for 5 s (the analog module watches its
+    heartbeat and falls back to 0 V), then reach it again: the true flow must be back within
+    ±5 % of the target soon after."""
+    result = hil_run("fault-controller-silent-recovery")
+    t, flow = row_mean(result, "flow_at_meter")
+    recovery = recovery_time(t, flow, t0=SILENCE_END_S, target=SILENCE_TARGET_GPS,
+                             **TRUE_FLOW_FILTER)
+    hil_measure("flow.silence.recovery_time", recovery, run=result,
+                note="5 s of cut wire from 13 s; the flow stops while the wire is cut")

@@ -174,4 +174,5 @@ def test_hil_run_command(tmp_path: Path) -> None:
     assert record["rig"] == "fertilizer" and record["scenario"] == "fault-sensor-silent"
     bad = subprocess.run([sys.executable, "-m", "hil", "run", "--rig", "fertilizer", "--dut",
                           "builtin:pi", "--scenario", "no-such"], capture_output=True, text=True)
-    assert bad.returncode == 2 and "available: bench-constant-1150" in bad.stderr
+    assert bad.returncode == 2
+    assert "available: bench-busload-1700, bench-constant-1150" in bad.stderr
