@@ -16,19 +16,12 @@ from hil.errors import BusError
 from hil.softbus import FaultKind, FaultRule, SoftwareBus, SoftwareBusProcess
 from hil.softbus.server import SoftwareBusError
 
-
-def _msg(can_id: int, data: bytes = b"\x01", extended: bool = False) -> can.Message:
-    return can.Message(arbitration_id=can_id, data=data, is_extended_id=extended)
+from .frames import drain
+from .frames import msg as _msg
 
 
 def _drain(bus: can.BusABC, n: int, timeout: float = 5.0) -> list[can.Message]:
-    out: list[can.Message] = []
-    deadline = time.monotonic() + timeout
-    while len(out) < n and time.monotonic() < deadline:
-        msg = bus.recv(0.2)
-        if msg is not None:
-            out.append(msg)
-    return out
+    return drain(bus, n, timeout, poll_s=0.2)
 
 
 @pytest.fixture

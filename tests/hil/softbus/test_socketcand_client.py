@@ -16,24 +16,9 @@ from hil.bus.socketcand import SocketcandBus, format_send
 from hil.errors import BusSpecError
 from hil.softbus import SoftwareBus
 
-
-def _msg(can_id: int, data: bytes = b"\x01", extended: bool = False) -> can.Message:
-    return can.Message(arbitration_id=can_id, data=data, is_extended_id=extended)
-
-
-def _drain(bus: can.BusABC, n: int, timeout: float = 5.0) -> list[can.Message]:
-    out: list[can.Message] = []
-    deadline = time.monotonic() + timeout
-    while len(out) < n and time.monotonic() < deadline:
-        msg = bus.recv(0.1)
-        if msg is not None:
-            out.append(msg)
-    return out
-
-
-def _fields(msg: can.Message) -> tuple[object, ...]:
-    return (msg.arbitration_id, msg.is_extended_id, msg.is_error_frame, msg.dlc,
-            bytes(msg.data), type(msg.data), msg.is_rx, msg.channel, msg.timestamp)
+from .frames import drain as _drain
+from .frames import fields as _fields
+from .frames import msg as _msg
 
 
 @pytest.fixture
