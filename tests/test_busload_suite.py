@@ -58,3 +58,22 @@ def test_bus_without_a_bit_rate_skips_the_suite(tmp_path: Path) -> None:
     assert rc == 2 and record["verdict"] == "error" and record["measurements"] == []
     [test] = [t for t in record["tests"] if "busload" in t["nodeid"]]
     assert test["outcome"] == "skipped" and "bit rate" in test.get("message", ""), test
+
+
+DEPTH_REFERENCE = ROOT / "dut_profiles" / "sowing-depth-fuzzy-pid-daemon.toml"
+
+
+@pytest.mark.slow
+def test_depth_reference_on_a_loaded_bus(tmp_path: Path) -> None:
+    """The depth field run (111 s real time) under load. On the 2-vCPU development VM the
+    depth rig's real-time loop stalls up to ~40 ms unloaded and ~60 ms loaded (limit 50 ms),
+    so the run may end ``invalid-bench``: the measurement is still recorded, never judged."""
+    rc, record = _qualify(DEPTH_REFERENCE, tmp_path / "q")
+    [m] = [m for m in record["measurements"] if m["name"] == "depth.busload.pass_rate"]
+    wire = float(re.search(r"([0-9.]+) % of the bit rate", m["note"]).group(1))
+    assert 75.0 < wire < 95.0, m["note"]      # the rig's ~30 % plus the 55 % offered
+    if record["verdict"] == "invalid-bench":
+        assert rc == 2
+        pytest.skip(f"the machine could not hold real time ({m['value']:.1f} % pass rate "
+                    f"recorded, not judged)")
+    assert rc == 0 and m["outcome"] in ("pass", "marginal"), m
