@@ -27,17 +27,19 @@ def _qualify(profile: Path, out: Path, bus: str = "softbus") -> tuple[int, dict[
     return proc.returncode, json.loads((out / "record.json").read_text())
 
 
-def _busload(record: dict[str, Any]) -> dict[str, Any]:
+def _judged_flow_busload(profile: Path, out: Path) -> tuple[int, dict[str, Any]]:
+    """Exit status and the flow.busload.accuracy measurement of a judged run (skips the test
+    when the machine could not hold real time: no verdict on the DUT then)."""
+    rc, record = _qualify(profile, out)
+    if record["verdict"] == "invalid-bench":
+        pytest.skip("the machine could not hold real time: no verdict on the DUT")
     [m] = [m for m in record["measurements"] if m["name"] == "flow.busload.accuracy"]
-    return m
+    return rc, m
 
 
 @pytest.mark.slow
 def test_reference_passes_on_a_loaded_bus(tmp_path: Path) -> None:
-    rc, record = _qualify(REFERENCE, tmp_path / "q")
-    if record["verdict"] == "invalid-bench":
-        pytest.skip("the machine could not hold real time: no verdict on the DUT")
-    m = _busload(record)
+    rc, m = _judged_flow_busload(REFERENCE, tmp_path / "q")
     assert rc == 0 and m["outcome"] in ("pass", "marginal"), m
     wire = float(re.search(r"([0-9.]+) % of the bit rate", m["note"]).group(1))
     assert 70.0 < wire < 90.0, m["note"]      # the rig's ~5 % plus the 75 % offered
@@ -45,10 +47,7 @@ def test_reference_passes_on_a_loaded_bus(tmp_path: Path) -> None:
 
 @pytest.mark.slow
 def test_setpoint_ignoring_controller_fails_on_a_loaded_bus(tmp_path: Path) -> None:
-    rc, record = _qualify(IGNORES_SETPOINT, tmp_path / "q")
-    if record["verdict"] == "invalid-bench":
-        pytest.skip("the machine could not hold real time: no verdict on the DUT")
-    m = _busload(record)
+    rc, m = _judged_flow_busload(IGNORES_SETPOINT, tmp_path / "q")
     assert rc == 1 and m["outcome"] == "fail", m
 
 
@@ -56,7 +55,7 @@ def test_bus_without_a_bit_rate_skips_the_suite(tmp_path: Path) -> None:
     rc, record = _qualify(REFERENCE, tmp_path / "q", bus="inline")
     # nothing measured: a setup error (exit 2), never a verdict on the DUT
     assert rc == 2 and record["verdict"] == "error" and record["measurements"] == []
-    [test] = [t for t in record["tests"] if "busload" in t["nodeid"]]
+    [test] = [t for t in record["tests"] if "test_flow_busload" in t["nodeid"]]
     assert test["outcome"] == "skipped" and "bit rate" in test.get("message", ""), test
 
 
