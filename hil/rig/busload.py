@@ -78,8 +78,14 @@ class BusLoad:
         return self
 
     def stop(self) -> None:
+        """Stop every periodic send and wait for its thread: python-can's ``stop`` only flags
+        it, and a send after the bus is shut down fails in that thread."""
         for task in self._tasks:
             task.stop()
+        for task in self._tasks:
+            thread = getattr(task, "thread", None)
+            if thread is not None:
+                thread.join(timeout=2.0)
         self._tasks.clear()
 
     def describe(self) -> dict[str, object]:

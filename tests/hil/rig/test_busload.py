@@ -96,3 +96,13 @@ def test_loaded_run_logs_the_load_and_does_not_count_it_as_the_dut(tmp_path: Pat
     ids = {m.arbitration_id for m in can.LogReader(str(tmp_path / "bus.log"))}
     assert {i for i, _ in LOAD_MIX} <= ids
     assert wire_load(str(tmp_path / "bus.log"), ToyRig.bitrate_bps) > 0.0
+
+
+def test_stopped_load_sends_nothing_more() -> None:
+    from hil.rig.busload import BusLoad
+
+    with can.Bus(interface="virtual", channel="busload-stop") as bus:
+        load = BusLoad(bus, 0.5, 250_000).start()
+        threads = [t.thread for t in load._tasks]   # python-can's cyclic send threads
+        load.stop()
+        assert not any(t.is_alive() for t in threads)
