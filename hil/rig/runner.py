@@ -133,6 +133,10 @@ class _Loop:
         self._now = self.clock.now
         #: set by run_scenario: power-cycles the DUT (scenario event dut = "restart")
         self.restart_dut: Callable[[], dict[str, Any]] | None = None
+        #: set by run_scenario: raises DutError when the DUT is gone. Lockstep finds a dead DUT
+        #: at the next SYNC (no answer); real time calls this once per control period, so a
+        #: crash ends the run there instead of after the scenario's full length
+        self.check_dut: Callable[[], None] | None = None
         self._flood_limit = options.max_dut_frames_per_period
         #: arbitration ids of other nodes on the bus (a bus load generator): logged, not handled
         self.foreign_ids: frozenset[int] = frozenset()
@@ -230,6 +234,8 @@ class _Loop:
         n_events = len(events)
         event_tick = events[0][0] if events else ticks_total   # tick of the next event
 
+        dut_check_ticks = max(1, round(rig.control_period_s / dt))
+        next_dut_check = dut_check_ticks
         clock.start()
         k = 0
         try:
@@ -273,6 +279,9 @@ class _Loop:
                     while k < target:   # real time: one physics step per tick
                         k = tick()
                         drain()
+                    if self.check_dut is not None and k >= next_dut_check:
+                        self.check_dut()
+                        next_dut_check = k + dut_check_ticks
                         advance(1, dt)
         finally:
             self.rec.timing = self.clock.stop()
@@ -362,6 +371,7 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
         loop = _Loop(rig, scenario, bus, rec, options.clock, options)
         loop.foreign_ids = foreign_ids
         loop.restart_dut = lambda: dut.restart(spec, dut_env)
+        loop.check_dut = dut.check
         try:
             loop.run()
             dut.check()

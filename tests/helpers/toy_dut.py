@@ -3,6 +3,7 @@
 usage: toy_dut.py BEHAVIOUR  (bus spec from AGRIHIL_BUS)
   good        boot-up frame, then answer each SYNC with frame 0x220
   crash       boot-up, then exit 3 after the first SYNC with a message on stderr
+  crash-soon  boot-up, then exit 3 after 0.3 s, SYNC or not (a crash in real time)
   hang        boot-up, ignore SIGTERM, never answer
   silent      never sends anything (no boot-up)
   flood       boot-up, then answer each SYNC with 500 frames
@@ -43,6 +44,10 @@ def main() -> int:
     bus = open_bus(os.environ["AGRIHIL_BUS"])
     bus.send(can.Message(arbitration_id=0x710, data=[0x00], is_extended_id=False))
     print("ready", flush=True)
+    if behaviour == "crash-soon":
+        time.sleep(0.3)
+        print("toy dut: simulated crash", file=sys.stderr, flush=True)
+        return 3
     while not stop:
         msg = bus.recv(0.05)
         if msg is None or msg.arbitration_id != 0x080:

@@ -163,3 +163,28 @@ def test_a_flooding_dut_ends_the_run_with_a_clear_error_and_its_frames_kept(
     else:
         assert not error and result.sim_s == pytest.approx(1.0)
     assert result.record["dut"]["exit_code"] is not None      # stopped, nothing left behind
+
+
+def test_a_dut_that_dies_in_real_time_ends_the_run_there(write_profile, tmp_path) -> None:
+    """A real-time run checks the DUT once per control period: a crash 0.3 s in ends the run
+    then (with the DUT's stderr in the error), not after the scenario's 3 s; traces are kept."""
+    import dataclasses
+
+    from hil.record import load_traces
+    from hil.rig import RunOptions, run_scenario
+    from plant_emulators.fertilizer.rig import FertilizerRig
+
+    name = "toy-crash-soon-daemon"
+    path = write_profile(name=name, text=profile_text(name, "crash-soon"))
+    dut = ProcessDut(load_profile(path), clock="realtime", log_dir=tmp_path / "crash")
+    scenario = dataclasses.replace(FertilizerRig.load_scenario("bench-step-23"), duration_s=3.0)
+    out = tmp_path / "run"
+    result = run_scenario(FertilizerRig, scenario, dut,
+                          RunOptions(out_dir=out, bus="softbus", clock="realtime"))
+    error = result.record["error"] or ""
+    assert result.verdict == "error"
+    assert "exited during the run with exit status 3" in error
+    assert "simulated crash" in error
+    assert result.sim_s < 2.0                 # simulated time reached, not a wall-clock limit
+    arrays, _ = load_traces(out / "traces.npz")
+    assert arrays["time_s"].size > 10         # what was recorded up to the crash is kept
