@@ -279,10 +279,10 @@ class _Loop:
                     while k < target:   # real time: one physics step per tick
                         k = tick()
                         drain()
+                        advance(1, dt)
                     if self.check_dut is not None and k >= next_dut_check:
                         self.check_dut()
                         next_dut_check = k + dut_check_ticks
-                        advance(1, dt)
         finally:
             self.rec.timing = self.clock.stop()
 
