@@ -103,10 +103,16 @@ class SocketcandBus(can.BusABC):
 
     # handshake ---------------------------------------------------------------------------
     def _expect(self, want: bytes, step: str) -> None:
-        """Read messages until ``want``; frames that arrive first are kept, errors fail."""
+        """Read messages until ``want``; frames that arrive before or after it are kept,
+        anything else fails."""
+        chunk = b""
         while True:
-            for body in self._take_messages():
+            bodies = self._split(chunk)
+            for i, body in enumerate(bodies):
+                body = body.strip()
                 if body == want:
+                    for later in bodies[i + 1:]:
+                        self._queue(later)
                     return
                 if body.startswith(b"frame ") or body.startswith(b"error "):
                     self._queue(body)
@@ -116,20 +122,6 @@ class SocketcandBus(can.BusABC):
             chunk = self._sock.recv(65536)
             if not chunk:
                 raise SocketcandError(f"socketcand {step}: the server closed the connection")
-            self._partial += chunk
-
-    def _take_messages(self) -> list[bytes]:
-        out = []
-        buf = self._partial
-        while True:
-            start = buf.find(b"<")
-            end = buf.find(b">", start + 1) if start >= 0 else -1
-            if end < 0:
-                break
-            out.append(buf[start + 1:end].strip())
-            buf = buf[end + 1:]
-        self._partial = buf
-        return out
 
     def _handshake(self, channel: str) -> None:
         self._expect(b"hi", "greeting")
@@ -232,18 +224,21 @@ class SocketcandBus(can.BusABC):
         except OSError as exc:
             raise can.CanOperationError(f"socketcand: receive failed: {exc}") from exc
 
-    def _parse(self, chunk: bytes) -> None:
+    def _split(self, chunk: bytes) -> list[bytes]:
+        """The bodies of the complete ``< … >`` messages in what was kept plus ``chunk``; the
+        partial rest is kept for the next read."""
         buf = self._partial + chunk if self._partial else chunk
         parts = buf.split(b">")
         tail = parts.pop()
         if len(tail) > _MAX_PARTIAL:
             tail = b""  # no '>' in sight: not socketcand, drop it (python-can drops too)
         self._partial = tail
+        return [part[start + 1:] for part in parts if (start := part.find(b"<")) >= 0]
+
+    def _parse(self, chunk: bytes) -> None:
         queue = self._queue
-        for part in parts:
-            start = part.find(b"<")
-            if start >= 0:
-                queue(part[start + 1:])
+        for body in self._split(chunk):
+            queue(body)
 
     def _queue(self, body: bytes) -> None:
         fields = body.split()

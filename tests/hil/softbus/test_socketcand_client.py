@@ -164,3 +164,36 @@ def test_the_rawmode_hold_ends_with_the_clients_next_message() -> None:
             held.close()
             eager.close()
             peer.shutdown()
+
+
+def test_a_frame_in_the_same_read_as_the_handshake_reply_is_kept() -> None:
+    """A real socketcand may send frames right behind '< ok >' in one segment: they are
+    received, not dropped with the handshake."""
+    import socket
+    import threading
+
+    listener = socket.create_server(("127.0.0.1", 0))
+    port = listener.getsockname()[1]
+
+    def serve() -> None:
+        conn, _ = listener.accept()
+        with conn:
+            conn.sendall(b"< hi >")
+            conn.recv(64)                                  # < open can0 >
+            conn.sendall(b"< ok >")
+            conn.recv(64)                                  # < rawmode >
+            conn.sendall(b"< ok >< frame 123 1.500000 AB >")
+            conn.recv(64)                                  # < echo >
+            time.sleep(0.5)
+
+    server = threading.Thread(target=serve, daemon=True)
+    server.start()
+    bus = SocketcandBus("can0", "127.0.0.1", port)
+    try:
+        msg = bus.recv(1.0)
+        assert msg is not None and msg.arbitration_id == 0x123 and bytes(msg.data) == b"\xab"
+        assert msg.timestamp == 1.5
+    finally:
+        bus.shutdown()
+        listener.close()
+        server.join(2.0)
