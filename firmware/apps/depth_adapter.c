@@ -27,6 +27,7 @@ void depth_config_defaults(depth_config_t *cfg)
     fpid_defaults(&cfg->core);
     cfg->min_speed_mps = 0.1;
     cfg->speed_timeout_s = 1.0;
+    cfg->frozen_after_s = 0.5;
 }
 
 size_t depth_param_refs(depth_config_t *cfg, param_ref_t refs[DEPTH_PARAM_COUNT])
@@ -34,6 +35,7 @@ size_t depth_param_refs(depth_config_t *cfg, param_ref_t refs[DEPTH_PARAM_COUNT]
     size_t n = fpid_param_refs(&cfg->core, refs);
     refs[n++] = (param_ref_t){"min_speed_mps", &cfg->min_speed_mps};
     refs[n++] = (param_ref_t){"speed_timeout_s", &cfg->speed_timeout_s};
+    refs[n++] = (param_ref_t){"frozen_after_s", &cfg->frozen_after_s};
     return n;
 }
 
@@ -140,6 +142,11 @@ size_t depth_on_frame(depth_adapter_t *a, const hal_can_frame_t *f, double now_s
         }
         /* [D] eq. 13, then the first-order filter */
         double x_mv = sowing_depth_inclinometer_inc_x_voltage_decode(m.inc_x_voltage);
+        if (!a->have_x || x_mv != a->last_x_mv) { /* 1 mV per count: exact in a double */
+            a->have_x = true;
+            a->last_x_mv = x_mv;
+            a->x_changed_at_s = now_s;
+        }
         double depth = -0.065 * x_mv + 270.35;
         a->depth_mm = a->have_depth ? a->depth_mm + DEPTH_FILTER * (depth - a->depth_mm)
                                     : depth;
@@ -203,6 +210,13 @@ static bool ground_speed(const depth_adapter_t *a, double now_s, double *mps)
     return true;
 }
 
+/* The X voltage has not changed for more than frozen_after_s (0 or less: never). */
+static bool frozen(const depth_adapter_t *a, double now_s)
+{
+    double limit = a->cfg.frozen_after_s;
+    return limit > 0.0 && a->have_x && now_s - a->x_changed_at_s > limit + 1e-9;
+}
+
 static double clamp(double x, double lo, double hi)
 {
     return fmin(fmax(x, lo), hi);
@@ -236,7 +250,8 @@ size_t depth_step(depth_adapter_t *a, double now_s, hal_can_frame_t out[DEPTH_MA
 
     double speed_mps = 0.0;
     info->speed_known = ground_speed(a, now_s, &speed_mps);
-    info->valid = a->have_depth && operation_enabled(a);
+    info->frozen = frozen(a, now_s);
+    info->valid = a->have_depth && a->depth_ok && !info->frozen && operation_enabled(a);
     info->enabled = a->have_setpoint && a->ds_enable == DS_ENABLE_ON &&
                     a->ds_mode == DS_MODE_AUTOMATIC && info->speed_known &&
                     speed_mps >= a->cfg.min_speed_mps;
@@ -281,7 +296,7 @@ size_t depth_step(depth_adapter_t *a, double now_s, hal_can_frame_t out[DEPTH_MA
         } else {
             st.dc_state = DC_INITIALISING;
         }
-        st.dc_sensor_fault = (uint8_t)!(a->have_depth && a->depth_ok);
+        st.dc_sensor_fault = (uint8_t)(!(a->have_depth && a->depth_ok) || info->frozen);
         st.dc_drive_fault = drive_fault ? 1u : 0u;
         st.dc_speed_lost = (uint8_t)!info->speed_known;
         st.dc_counter = (uint8_t)(a->status_counter++ & 0x0Fu);

@@ -12,8 +12,12 @@
  *        (Controlword, Target velocity) every step, DepthControllerStatus 0x18FF3080 and the
  *        heartbeat 0x701 every 10th step (the first step included), boot-up 0x701 [0x00].
  * Depth: eq. 13 on the X voltage of frames with status ok, filtered d += 0.2 (depth - d) per
- * frame (the first frame sets d); it is held when the inclinometer stops or reports a bad
- * status (the status frame then says SensorFault), as in the Python build. */
+ * frame (the first frame sets d). The depth is invalid (the core resets and the roller holds:
+ * target velocity 0; the status frame says SensorFault) while the latest frame's X status is
+ * not ok, and while the X voltage has not changed for more than frozen_after_s (0.5 s; 0 or
+ * less turns this check off): a live inclinometer on a moving machine never repeats one ADC
+ * count for half a second, so a frozen output, or one that stopped sending, is a dead sensor,
+ * not a steady depth. As in the Python build. */
 #ifndef AGRIHIL_DEPTH_ADAPTER_H
 #define AGRIHIL_DEPTH_ADAPTER_H
 
@@ -25,7 +29,7 @@
 #include "hal_can.h"
 
 #define DEPTH_MAX_OUT 4
-#define DEPTH_PARAM_COUNT (FPID_PARAM_COUNT + 2)
+#define DEPTH_PARAM_COUNT (FPID_PARAM_COUNT + 3)
 #define DEPTH_DRIVE_NODE 2 /* CANopen node id of the servo cylinder drive */
 
 /* CiA 402 controlwords */
@@ -39,12 +43,15 @@ typedef struct {
     fpid_params_t core;
     double min_speed_mps;   /* control only at or above this ground speed (0.1 m/s) */
     double speed_timeout_s; /* no valid ground speed for longer than this: unknown (1 s) */
+    double frozen_after_s;  /* X voltage unchanged for longer than this: sensor dead (0.5 s;
+                               0 or less: no check) */
 } depth_config_t;
 
 typedef struct {
     double target_mm;
     double depth_mm;
     bool valid;
+    bool frozen; /* the X voltage has not changed for more than frozen_after_s */
     bool enabled;
     bool speed_known;
     uint16_t controlword;
@@ -70,6 +77,10 @@ typedef struct {
     bool have_depth;
     double depth_mm;
     bool depth_ok;
+    /* the last X voltage with status ok and when it last changed (frozen-sensor check) */
+    bool have_x;
+    double last_x_mv;
+    double x_changed_at_s;
     /* ground speed by source: [0] GBSD (PGN 65097), [1] GNSS; the fresher valid one counts */
     bool have_speed[2];
     double speed_mps[2];
@@ -82,7 +93,7 @@ typedef struct {
 void depth_config_defaults(depth_config_t *cfg);
 
 /* Named parameters, the Python build's names: the core's (see fpid_param_refs) plus
- * min_speed_mps and speed_timeout_s. */
+ * min_speed_mps, speed_timeout_s and frozen_after_s. */
 size_t depth_param_refs(depth_config_t *cfg, param_ref_t refs[DEPTH_PARAM_COUNT]);
 
 /* 0, or -1 if a parameter is out of its range (message in err). */

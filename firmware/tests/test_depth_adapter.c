@@ -9,11 +9,16 @@
 static depth_adapter_t a;
 static hal_can_frame_t out[DEPTH_MAX_OUT];
 
+static void start_with(const depth_config_t *cfg)
+{
+    depth_init(&a, cfg);
+}
+
 static void start(void)
 {
     depth_config_t cfg;
     depth_config_defaults(&cfg);
-    depth_init(&a, &cfg);
+    start_with(&cfg);
 }
 
 static hal_can_frame_t std_frame(uint32_t id, uint8_t len, const uint8_t *data)
@@ -181,9 +186,9 @@ static void test_depth_filter(void)
     CHECK_INT(m.dc_counter, 1);
 }
 
-static void make_ready(double speed_mps)
+static void make_ready_with(const depth_config_t *cfg, double speed_mps)
 {
-    start();
+    start_with(cfg);
     hal_can_frame_t hb = heartbeat(0x05);
     depth_on_frame(&a, &hb, 0.0, out);
     hal_can_frame_t sw = tpdo1(0x0237);
@@ -196,6 +201,13 @@ static void make_ready(double speed_mps)
         hal_can_frame_t g = gbsd(speed_mps);
         depth_on_frame(&a, &g, 0.0, out);
     }
+}
+
+static void make_ready(double speed_mps)
+{
+    depth_config_t cfg;
+    depth_config_defaults(&cfg);
+    make_ready_with(&cfg, speed_mps);
 }
 
 static void test_control_step(void)
@@ -260,6 +272,135 @@ static void test_enable_conditions(void)
     CHECK(!a.last.speed_known);
 }
 
+/* One step at i * 10 ms (the lockstep clock), after an inclinometer frame with X = x_mv
+ * (none if x_mv < 0) and a fresh 1 m/s ground speed; returns the target velocity of the RPDO2
+ * and sets *fault to the status frame's SensorFault (-1 on steps without a status frame). */
+static long long step_at(int i, int x_mv, uint8_t x_status, int *fault)
+{
+    double t = (double)i * 0.01;
+    if (x_mv >= 0) {
+        hal_can_frame_t inc = inclinometer((uint16_t)x_mv, x_status);
+        depth_on_frame(&a, &inc, t, out);
+    }
+    hal_can_frame_t g = gbsd(1.0);
+    depth_on_frame(&a, &g, t, out);
+    size_t n = depth_step(&a, t, out);
+    struct servo_cylinder_pdo_rpdo2_t pdo;
+    const hal_can_frame_t *p = find(n, 0x302);
+    servo_cylinder_pdo_rpdo2_unpack(&pdo, p->data, p->len);
+    const hal_can_frame_t *st = find(n, SOWING_DEPTH_DEPTH_CONTROLLER_STATUS_FRAME_ID);
+    *fault = -1;
+    if (st != NULL) {
+        struct sowing_depth_depth_controller_status_t m;
+        sowing_depth_depth_controller_status_unpack(&m, st->data, st->len);
+        *fault = m.dc_sensor_fault;
+    }
+    return pdo.target_velocity;
+}
+
+/* Runs steps first..last; counts the steps that controlled (valid, velocity != 0) and the
+ * status frames that said SensorFault. x_mv < 0: no inclinometer frames; alternate: X goes
+ * x_mv, x_mv + 1, x_mv, ... */
+static void run_steps(int first, int last, int x_mv, bool alternate, uint8_t x_status,
+                      int *controlled, int *faults)
+{
+    *controlled = 0;
+    *faults = 0;
+    for (int i = first; i <= last; i++) {
+        int x = x_mv < 0 ? -1 : x_mv + (alternate ? i % 2 : 0);
+        int fault;
+        long long v = step_at(i, x, x_status, &fault);
+        if (a.last.valid && v != 0) {
+            (*controlled)++;
+        }
+        if (fault == 1) {
+            (*faults)++;
+        }
+    }
+}
+
+static void test_frozen_inclinometer(void)
+{
+    make_ready(1.0); /* X = 3700 at 0 s */
+    CHECK_NEAR(a.cfg.frozen_after_s, 0.5, 0);
+    int controlled, faults, fault;
+    /* a live sensor (X changes every frame) controls for 3 s, no SensorFault */
+    run_steps(0, 299, 3700, true, 0, &controlled, &faults);
+    CHECK_INT(controlled, 300);
+    CHECK_INT(faults, 0);
+    /* X changes to 3710 at 3.00 s, then repeats: control up to 3.50 s (0.5 s, not more) */
+    run_steps(300, 350, 3710, false, 0, &controlled, &faults);
+    CHECK_INT(controlled, 51);
+    CHECK_INT(faults, 0); /* the status frame of 3.50 s included */
+    CHECK(!a.last.frozen);
+    /* 3.51 s: frozen; the roller holds and the status says SensorFault */
+    CHECK_INT(step_at(351, 3710, 0, &fault), 0);
+    CHECK(a.last.frozen && !a.last.valid);
+    run_steps(352, 399, 3710, false, 0, &controlled, &faults);
+    CHECK_INT(controlled, 0);
+    CHECK_INT(faults, 4); /* 3.60, 3.70, 3.80, 3.90 s */
+    /* a changed X is a live sensor again */
+    CHECK(step_at(400, 3711, 0, &fault) != 0);
+    CHECK_INT(fault, 0);
+    CHECK(a.last.valid && !a.last.frozen);
+    /* frames stop at 4.00 s: the held depth controls up to 4.50 s, then the roller holds */
+    run_steps(401, 450, -1, false, 0, &controlled, &faults);
+    CHECK_INT(controlled, 50);
+    CHECK_INT(faults, 0);
+    run_steps(451, 470, -1, false, 0, &controlled, &faults);
+    CHECK_INT(controlled, 0);
+    CHECK_INT(faults, 2); /* 4.60, 4.70 s */
+    CHECK(a.last.frozen);
+    /* a bad status meanwhile does not count as a change: still frozen */
+    run_steps(471, 480, 3900, false, 1, &controlled, &faults);
+    CHECK_INT(controlled, 0);
+    /* a good frame with the last good X (3711) is no change either */
+    run_steps(481, 490, 3711, false, 0, &controlled, &faults);
+    CHECK_INT(controlled, 0);
+    CHECK_INT(faults, 1);
+}
+
+static void test_frozen_check_off(void)
+{
+    static const char *const offs[] = {"0", "-1"};
+    for (int k = 0; k < 2; k++) {
+        depth_config_t cfg;
+        depth_config_defaults(&cfg);
+        param_ref_t refs[DEPTH_PARAM_COUNT];
+        size_t n = depth_param_refs(&cfg, refs);
+        CHECK(param_set(refs, n, "frozen_after_s", offs[k]) == PARAM_OK);
+        make_ready_with(&cfg, 1.0);
+        /* the same X for 3 s, then no frames for 2 s: the held depth controls throughout */
+        int controlled, faults;
+        run_steps(0, 299, 3700, false, 0, &controlled, &faults);
+        CHECK_INT(controlled, 300);
+        CHECK_INT(faults, 0);
+        run_steps(300, 499, -1, false, 0, &controlled, &faults);
+        CHECK_INT(controlled, 200);
+        CHECK_INT(faults, 0);
+        CHECK(!a.last.frozen);
+    }
+}
+
+static void test_bad_status_holds(void)
+{
+    make_ready(1.0);
+    int fault;
+    CHECK(step_at(0, 3701, 0, &fault) != 0);
+    CHECK_INT(fault, 0);
+    /* X status not ok: the depth is invalid at once, the roller holds, SensorFault */
+    int controlled, faults;
+    run_steps(1, 10, 3702, true, 1, &controlled, &faults);
+    CHECK_INT(controlled, 0);
+    CHECK_INT(faults, 1); /* the status frame of 0.10 s */
+    CHECK(!a.last.valid && !a.last.frozen);
+    CHECK_INT(step_at(11, 3705, 2, &fault), 0); /* above range as well as below */
+    /* a good frame (a new X) controls again */
+    run_steps(12, 20, 3700, true, 0, &controlled, &faults);
+    CHECK_INT(controlled, 9);
+    CHECK_INT(faults, 0);
+}
+
 static void test_config_check(void)
 {
     depth_config_t cfg;
@@ -274,8 +415,10 @@ static void test_config_check(void)
     CHECK_INT(n, DEPTH_PARAM_COUNT);
     CHECK(param_set(refs, n, "kp_scale", "0.4") == PARAM_OK && cfg.core.kp_scale == 0.4);
     CHECK(param_set(refs, n, "speed_timeout_s", "2") == PARAM_OK && cfg.speed_timeout_s == 2);
+    CHECK(param_set(refs, n, "frozen_after_s", "0.25") == PARAM_OK && cfg.frozen_after_s == 0.25);
     CHECK(param_set(refs, n, "kp1", "1") == PARAM_UNKNOWN);
 }
 
 TEST_MAIN("depth_adapter", test_nmt_start, test_controlwords, test_depth_filter,
-          test_control_step, test_enable_conditions, test_config_check)
+          test_control_step, test_enable_conditions, test_frozen_inclinometer,
+          test_frozen_check_off, test_bad_status_holds, test_config_check)

@@ -12,7 +12,12 @@ rig's DBC (:class:`FrameCodec`), the drive's PDOs through canopen PDO maps read 
 * every 10th step (the first included): DepthControllerStatus and the heartbeat 0x701.
 
 Depth: the inclinometer's X voltage with status "ok", eq. 13 ``depth = -0.065·x + 270.35``,
-filtered ``d += 0.2·(depth - d)`` per frame (the first frame sets d). Enabled: the terminal
+filtered ``d += 0.2·(depth - d)`` per frame (the first frame sets d). The depth is invalid
+(the PID resets and the roller holds; the status frame says SensorFault) while the status is
+not "ok", and while the X voltage has not changed for more than ``frozen_after_s``: a live
+inclinometer on a moving machine never repeats one ADC count for half a second (its noise
+alone is 2-5 counts SD), so a frozen output or one that stopped sending is a dead sensor, not
+a steady depth. Enabled: the terminal
 says on + automatic and a ground speed >= ``min_speed_mps`` is known (GBSD or GNSS, see
 :mod:`.ground_speed`).
 """
@@ -61,10 +66,12 @@ GNSS_PORT_ENV = "AGRIHIL_GNSS_PORT"
 
 @dataclass(frozen=True)
 class DepthAdapterParams:
-    """The adapter's own parameters: when a ground speed counts as known."""
+    """The adapter's own parameters: when a ground speed counts as known, and when an
+    unchanging inclinometer counts as dead (``frozen_after_s``; 0 turns the check off)."""
 
     min_speed_mps: float = 0.1
     speed_timeout_s: float = 1.0
+    frozen_after_s: float = 0.5
 
 
 def resolve_params(params: Mapping[str, ParamValue] | None) -> tuple[FuzzyPidParams,
@@ -124,6 +131,8 @@ class DepthController(Controller):
         self.manual = False
         self.depth_mm: float | None = None
         self.depth_ok = False
+        self.last_x_mv: float | None = None
+        self.x_changed_at_s = 0.0
         self.steps = 0
         self.speed_mm_s = 0.0
         self.gains = (self.core_params.kp0, self.core_params.ki0, self.core_params.kd0)
@@ -177,6 +186,8 @@ class DepthController(Controller):
             assert isinstance(frame, InclinometerFrame)
             self.depth_ok = frame.x_status == "ok"
             if self.depth_ok:
+                if frame.x_mv != self.last_x_mv:
+                    self.last_x_mv, self.x_changed_at_s = frame.x_mv, self.now_s
                 depth = calibration_depth_mm(frame.x_mv)
                 self.depth_mm = depth if self.depth_mm is None else (
                     self.depth_mm + DEPTH_FILTER * (depth - self.depth_mm))
@@ -199,6 +210,12 @@ class DepthController(Controller):
         """One free-running control step (a daemon's timer, not SYNC)."""
         return self.step()
 
+    def frozen(self) -> bool:
+        """The inclinometer's X voltage has not changed for more than ``frozen_after_s``."""
+        limit = self.adapter_params.frozen_after_s
+        return (limit > 0.0 and self.last_x_mv is not None
+                and self.now_s - self.x_changed_at_s > limit + 1e-9)
+
     def enabled(self) -> bool:
         speed = self.speeds.speed(self.now_s)
         return (self.terminal_on and self.automatic and speed is not None
@@ -215,7 +232,8 @@ class DepthController(Controller):
             self.mode_sent = True
         controlword = next_controlword(self.statusword, self.last_controlword)
         self.last_controlword = controlword
-        valid = self.depth_mm is not None and is_operation_enabled(self.statusword)
+        valid = (self.depth_mm is not None and self.depth_ok and not self.frozen()
+                 and is_operation_enabled(self.statusword))
         enabled = self.enabled()
         speed, kp, ki, kd = self.core.step(self.target_mm, self.depth_mm or 0.0, valid,
                                            enabled)
@@ -245,7 +263,7 @@ class DepthController(Controller):
         depth = 0.0 if self.depth_mm is None else min(max(self.depth_mm, -100.0), 200.0)
         return self.codec.encode(ControllerStatus(
             measured_depth_mm=round(depth, 1), roller_position_command_mm=0.0, state=state,
-            sensor_fault=int(self.depth_mm is None or not self.depth_ok),
+            sensor_fault=int(self.depth_mm is None or not self.depth_ok or self.frozen()),
             drive_fault=int(is_fault(self.statusword)),
             speed_lost=int(self.speeds.speed(self.now_s) is None),
             counter=(self.steps // STATUS_EVERY) % 16))

@@ -155,6 +155,64 @@ def test_depth_controller_masters_the_drive() -> None:
     assert ctl.speed_mm_s > 0.0                                 # deeper: push the roller down
 
 
+def _controlling_depth_controller(**params: float) -> tuple[DepthController, FrameCodec]:
+    """A depth controller with its drive Operation enabled, a 30 mm set-point and 1.1 m/s."""
+    ctl, codec = DepthController(params), FrameCodec()
+    ctl.on_frame(can.Message(arbitration_id=0x702, is_extended_id=False, data=b"\x05"))
+    ctl.on_frame(can.Message(arbitration_id=0x182, is_extended_id=False,
+                             data=(0x0027).to_bytes(2, "little") + bytes(4)))
+    ctl.on_frame(codec.encode(DepthSetpoint(target_depth_mm=30.0)))
+    return ctl, codec
+
+
+def _depth_step(ctl: DepthController, codec: FrameCodec, x_mv: int | None,
+                status: str | int = "ok") -> tuple[float, int | None]:
+    """Feed one inclinometer frame (None: none) and a GBSD, then SYNC: (speed, SensorFault)."""
+    if x_mv is not None:
+        ctl.on_frame(codec.encode(InclinometerFrame(x_mv=x_mv, y_mv=2500, x_status=status)))
+    ctl.on_frame(can.Message(arbitration_id=0x0CFE49F0, is_extended_id=True,
+                             data=codec.encode_signals("GBSD", {
+                                 "GBSD_GroundSpeed": 1.1, "GBSD_GroundDistance": 0.0,
+                                 "GBSD_Direction": "forward"}).data))
+    out = ctl.on_frame(SYNC)
+    fault = None
+    for msg in out:
+        if msg.arbitration_id == 0x18FF3080:
+            fault = int(codec.decode(msg).sensor_fault)
+    return ctl.speed_mm_s, fault
+
+
+def test_depth_controller_holds_the_roller_on_a_frozen_inclinometer() -> None:
+    ctl, codec = _controlling_depth_controller()
+    shallow = round(calibration_signal_mv(25.0))        # 5 mm too shallow: push down
+    for i in range(100):                                 # 1 s of a live sensor
+        speed, fault = _depth_step(ctl, codec, shallow + (i % 3))
+        assert speed > 0.0 and fault in (None, 0), i
+    frozen = shallow + 99 % 3
+    steps = [_depth_step(ctl, codec, frozen) for _ in range(100)]   # the output freezes
+    # the last change was at the step 99 frame: 0.5 s later the depth is dead
+    assert all(speed > 0.0 for speed, _ in steps[:50])
+    assert all(speed == 0.0 for speed, _ in steps[51:])
+    assert {fault for _, fault in steps[51:]} == {None, 1}
+    assert _depth_step(ctl, codec, frozen + 1)[0] > 0.0          # alive again
+    for _ in range(51):                                  # stops sending: dead as well
+        _depth_step(ctl, codec, None)
+    assert _depth_step(ctl, codec, None)[0] == 0.0
+
+
+def test_depth_controller_frozen_check_off_and_bad_status() -> None:
+    ctl, codec = _controlling_depth_controller(frozen_after_s=0.0)
+    x = round(calibration_signal_mv(25.0))
+    assert all(_depth_step(ctl, codec, x)[0] > 0.0 for _ in range(300))
+    ctl, codec = _controlling_depth_controller()
+    _depth_step(ctl, codec, x)
+    for status in (1, 2):                                # a bad status holds the roller
+        speeds = [_depth_step(ctl, codec, x + i, status=status) for i in range(10)]
+        assert all(speed == 0.0 for speed, _ in speeds)
+        assert 1 in {fault for _, fault in speeds}
+    assert _depth_step(ctl, codec, x + 20)[0] > 0.0
+
+
 def test_nmea_speed_sentences() -> None:
     from plant_emulators.sowing_depth.nmea import build_sentence
 
