@@ -71,8 +71,15 @@ _SPECS = (
                     "Operation enabled again"),
     MeasurementSpec("depth.fault.speed_loss.rod_travel", "mm", "sowing_depth",
                     "rod travel while the machine stands still"),
+    MeasurementSpec("depth.fault.sensor.deviation", "mm", "sowing_depth",
+                    "RMS, over a sensor fault, of the true depth minus that of the same run "
+                    "without the fault (same seed)"),
+    MeasurementSpec("depth.silence.recovery_time", "s", "sowing_depth",
+                    "time after the DUT's frames reach the rig again (5 s of cut wire) until "
+                    "the true depth, paired with its run without the cut, is back in +/-5 %"),
     MeasurementSpec("depth.restart.recovery_time", "s", "sowing_depth",
-                    "time after a DUT restart until the true depth is back in the band"),
+                    "time after a DUT restart until the true depth, paired with its run "
+                    "without the restart, is back in +/-5 %"),
     MeasurementSpec("depth.busload.pass_rate", "%", "sowing_depth",
                     "pass rate of a field run on a bus loaded near its bit rate"),
     # both rigs

@@ -1,10 +1,10 @@
-"""The depth step suite discriminates: the reference profiles pass it, and each must-fail depth
-profile (``dut_profiles/must_fail/sowing-depth-*.toml``) fails it on the measurement its defect
-breaks, and only there.
+"""The depth step and fault suites discriminate: the reference profiles pass them, and each
+must-fail depth profile (``dut_profiles/must_fail/sowing-depth-*.toml``) fails them on the
+measurements its defect breaks, and only there.
 
-Each case is ``hil qualify PROFILE --bus inline -k depth_step`` in a subprocess (the way the
-gate meets it), judged from its ``record.json``. The firmware reference needs the software bus
-and a host build (``slow``).
+Each case is ``hil qualify PROFILE --bus inline -k "depth_step or depth_faults"`` in a
+subprocess (the way the gate meets it), judged from its ``record.json``. The firmware
+reference needs the software bus and a host build (``slow``).
 """
 
 from __future__ import annotations
@@ -26,6 +26,15 @@ FIRMWARE = ROOT / "dut_profiles" / "sowing-depth-fuzzy-pid-firmware.toml"
 MUST_FAIL = ROOT / "dut_profiles" / "must_fail"
 STEPS = ("30->40", "40->20", "20->30")
 NOT_PASSED = ("fail", "error")
+SELECTION = "depth_step or depth_faults"
+PASS = ("pass",)
+FAIL = ("fail",)
+#: the fault suite's measurements: (name without "depth.", the ``fault`` condition or "")
+FAULTS = (("fault.sensor.deviation", "inclinometer_stuck"),
+          ("fault.sensor.deviation", "inclinometer_noisy"),
+          ("fault.sensor.deviation", "draw_wire_lost"),
+          ("fault.sensor.deviation", "gnss_fix_lost"),
+          ("silence.recovery_time", ""), ("restart.recovery_time", ""))
 
 #: profile stem -> {(measurement, signal): outcomes allowed per step, in STEPS order}
 #: (``None``: not checked for that step)
@@ -51,6 +60,13 @@ EXPECTED: dict[str, dict[tuple[str, str], tuple[tuple[str, ...] | None, ...]]] =
         ("steady_state_error", "sensed"): (("pass",),) * 3,
         ("steady_state_error", "true"): (("pass",),) * 3,
     },
+    # the reference's step response: its defect shows only when the inclinometer freezes
+    "sowing-depth-trusts-frozen-sensor-daemon": {
+        ("response_time", "sensed_paired"): (("pass",),) * 3,
+        ("overshoot", "sensed_paired"): (("pass",),) * 3,
+        ("steady_state_error", "sensed"): (("pass",),) * 3,
+        ("steady_state_error", "true"): (("pass",),) * 3,
+    },
     # never engages: no response to any step; the depths away from 30 mm are far off
     "sowing-depth-never-engages-daemon": {
         ("response_time", "sensed_paired"): (NOT_PASSED,) * 3,
@@ -60,11 +76,27 @@ EXPECTED: dict[str, dict[tuple[str, str], tuple[tuple[str, ...] | None, ...]]] =
 }
 
 
+#: profile stem -> outcomes allowed per fault measurement, in FAULTS order
+FAULT_EXPECTED: dict[str, tuple[tuple[str, ...], ...]] = {
+    # its ~1 Hz limit cycle feeds on sensor noise and never settles after a disturbance;
+    # the sensors it does not use do not matter
+    "sowing-depth-high-gain-daemon": (FAIL, FAIL, PASS, PASS, NOT_PASSED, NOT_PASSED),
+    # it winds up while its commands do not arrive: ~3.6 s back into the band after the cut
+    "sowing-depth-integral-heavy-daemon": (PASS, PASS, PASS, PASS, FAIL, PASS),
+    # never moves the roller: no fault moves the seeds (its defect is in the step suite)
+    "sowing-depth-never-engages-daemon": (PASS,) * 6,
+    # slow but calm: faults do not find it out
+    "sowing-depth-sluggish-daemon": (PASS,) * 6,
+    # integrates the frozen depth: the roller runs to its end stop
+    "sowing-depth-trusts-frozen-sensor-daemon": (FAIL, PASS, PASS, PASS, PASS, PASS),
+}
+
+
 def _qualify(profile: Path, out: Path, bus: str = "inline",
              timeout: float = 600) -> tuple[subprocess.CompletedProcess[str], dict[str, Any]]:
     proc = subprocess.run(
         [sys.executable, "-m", "hil", "qualify", str(profile), "--bus", bus, "--out", str(out),
-         "-k", "depth_step", "--quiet"],
+         "-k", SELECTION, "--quiet"],
         capture_output=True, text=True, cwd=ROOT, timeout=timeout)
     record_path = out / "record.json"
     assert record_path.exists(), proc.stdout + proc.stderr
@@ -74,11 +106,25 @@ def _qualify(profile: Path, out: Path, bus: str = "inline",
 def _by_key(record: dict[str, Any]) -> dict[tuple[str, str, str], dict[str, Any]]:
     out = {}
     for m in record["measurements"]:
+        if not m["name"].startswith("depth.step."):
+            continue
         c = m["conditions"]
         key = (m["name"].removeprefix("depth.step."), c["signal"],
                f"{c['from_mm']:g}->{c['to_mm']:g}")
         assert key not in out, f"measured twice: {key}"
         out[key] = m
+    return out
+
+
+def _faults(record: dict[str, Any]) -> dict[tuple[str, str], dict[str, Any]]:
+    out = {}
+    for m in record["measurements"]:
+        if m["name"].startswith("depth.step."):
+            continue
+        key = (m["name"].removeprefix("depth."), m["conditions"].get("fault", ""))
+        assert key not in out, f"measured twice: {key}"
+        out[key] = m
+    assert sorted(out) == sorted(FAULTS), sorted(out)
     return out
 
 
@@ -94,13 +140,15 @@ def _assert_reference_passes(proc: subprocess.CompletedProcess[str],
         assert m["outcome"] == "pass", (key, m)
         # no noise warning: the band is wider than 3 SD of what is left of the noise
         assert "3 SD" not in m["note"] and "still varies" not in m["note"], (key, m["note"])
+    for key, m in _faults(record).items():
+        assert m["outcome"] == "pass", (key, m)
 
 
 def test_must_fail_profiles_carry_the_reference_limits() -> None:
     reference = load_profile(REFERENCE).limits
     assert load_profile(FIRMWARE).limits == reference
     profiles = sorted(MUST_FAIL.glob("sowing-depth-*.toml"))
-    assert sorted(p.stem for p in profiles) == sorted(EXPECTED)
+    assert sorted(p.stem for p in profiles) == sorted(EXPECTED) == sorted(FAULT_EXPECTED)
     for path in profiles:
         assert load_profile(path).limits == reference, path.name
 
@@ -123,6 +171,12 @@ def test_must_fail_depth_profile_fails_on_its_defect(tmp_path: Path, name: str) 
             assert m["outcome"] in outcomes, (
                 f"{name}: {measurement}[{signal}, {step}] = {m['value']} {m['unit']} is "
                 f"{m['outcome']}, expected {' or '.join(outcomes)} ({m['note']})")
+    got_faults = _faults(record)
+    for key, outcomes in zip(FAULTS, FAULT_EXPECTED[name], strict=True):
+        m = got_faults[key]
+        assert m["outcome"] in outcomes, (
+            f"{name}: {key} = {m['value']} {m['unit']} is {m['outcome']}, expected "
+            f"{' or '.join(outcomes)} ({m['note']})")
 
 
 @pytest.mark.slow

@@ -79,7 +79,6 @@ What the pairing cannot see
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -88,6 +87,7 @@ import pytest
 from hil.metrics import smooth, step_response
 from hil.rig import RunResult
 from hil.rig.scenario import Scenario
+from test_suites.sowing_depth.pairing import hold_twin, paired
 from test_suites.sowing_depth.traces import trace
 
 pytestmark = [pytest.mark.hil_rig("sowing_depth"), pytest.mark.hil_suite("fast")]
@@ -104,15 +104,6 @@ PRE_S = 1.0
 SIGNALS = {"sensed": "sensed_depth_mm", "true": "mean_true_depth_mm"}
 
 
-def hold_twin(scenario: Scenario) -> Scenario:
-    """``scenario`` with its set-point held at the initial value: no events, same seed."""
-    return dataclasses.replace(
-        scenario, name=f"{scenario.name}-hold", events=(),
-        description=f"{scenario.name} with the set-point held at "
-                    f"{scenario.initial['target_depth_mm']:g} mm (same seed: same field "
-                    "and sensor noise)")
-
-
 def _scenario_steps(scenario: Scenario) -> list[tuple[float, float]]:
     return [(e.at_s, float(e.set["target_depth_mm"])) for e in scenario.events
             if e.set and "target_depth_mm" in e.set]
@@ -120,11 +111,7 @@ def _scenario_steps(scenario: Scenario) -> list[tuple[float, float]]:
 
 def paired_sensed(step: RunResult, hold: RunResult) -> tuple[np.ndarray, np.ndarray]:
     """``(t, 30 + s_step - s_hold)``: the paired sensed depth (module docstring)."""
-    t, s_step = trace(step, SIGNALS["sensed"])
-    t_hold, s_hold = trace(hold, SIGNALS["sensed"])
-    if t_hold.shape != t.shape or not np.allclose(t_hold, t, atol=1e-9):
-        s_hold = np.interp(t, t_hold, s_hold)      # real-time runs: sample times differ
-    return t, HOLD_MM + s_step - s_hold
+    return paired(step, hold, SIGNALS["sensed"], HOLD_MM)
 
 
 def _window_sd(t: np.ndarray, y: np.ndarray, t_end: float) -> float:

@@ -1,0 +1,132 @@
+"""What sensor faults, a silent controller and a controller restart do to the seeds.
+
+Each fault scenario is run with its *twin*: the same scenario and seed without the events
+(:mod:`test_suites.sowing_depth.pairing`). Both see the same field and the same sensor noise,
+so the difference of their mean true seed depths (the 12 rows, the rig's truth) is what the
+fault made the DUT do to the seeds, without the soil's own ripple (~1.5 mm SD)::
+
+    y(t) = 30 mm + d_fault(t) - d_twin(t)        (the paired true depth; exactly 30 mm
+                                                  before the fault, in lockstep)
+
+The true depth is judged, not the sensed one: in a sensor fault the sensed depth is what
+is broken.
+
+* **sensor faults** (``depth.fault.sensor.deviation``, condition ``fault``): from 20 s the
+  inclinometer freezes, gets very noisy (a loose mounting: x20 noise), the
+  draw-wire sensor stops sending, or the GNSS receiver loses its fix (for 10 s; the ground
+  speed still comes from the tractor's GBSD). The value is the RMS of ``y - 30`` from the
+  fault's onset to the end of the run (recovering after a cleared fault is part of it), in
+  mm. A controller that integrates a frozen depth drives the roller to its end stop (tens
+  of mm); one that notices the dead sensor and holds the roller stays within the soil's
+  drift (~1 mm); a controller that does not use a sensor is not moved by its loss at all
+  (0 mm, exactly, in lockstep).
+* **silence** (``depth.silence.recovery_time``): the controller's frames stop reaching the
+  rig from 20 s to 25 s (a cut wire; the drive, with no heartbeat consumer configured, keeps
+  its last target velocity, so the roller drifts), then reach it again. The time from 25 s
+  until the 0.2 s running median of ``y`` is within +/-5 % (1.5 mm) of 30 mm and stays there
+  to the end (at least 1 s): a controller that wound up while its commands did not arrive
+  overshoots the other way.
+* **restart** (``depth.restart.recovery_time``): the controller is power-cycled at 20 s (its
+  state is lost; the drive stays Operational with its last command). The time from 20 s
+  until ``y`` is back in the band, as above; 0 s when it never left.
+
+The fault scenarios share seed, speed and target, so they share one twin run, made once per
+session. The filter and the band are the step suite's (:mod:`test_depth_step`): the paired signal
+needs no smoothing against soil noise, the median only removes sample-level flicker.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from hil.metrics import recovery_time
+from test_suites.sowing_depth.pairing import hold_twin, paired
+
+pytestmark = [pytest.mark.hil_rig("sowing_depth"), pytest.mark.hil_suite("robustness")]
+
+TRUE_DEPTH = "mean_true_depth_mm"
+BAND = 0.05
+FILTER = {"filter_kind": "median", "filter_s": 0.2}
+
+
+@pytest.fixture(scope="module")
+def twins() -> dict[str, object]:
+    """Twin runs by scenario content: the fault scenarios share seed, speed and target, so
+    their twins are one and the same run, made once."""
+    return {}
+
+
+def _fault_run(hil_run, hil_rig, twins, name: str):
+    scenario = hil_rig.load_scenario(name)
+    target = scenario.initial.get("target_depth_mm")
+    if any(e.set and "target_depth_mm" in e.set for e in scenario.events) or target is None:
+        raise AssertionError(f"{name}: the fault suites need a fixed target depth")
+    run = hil_run(scenario)
+    twin_scenario = dataclasses.replace(hold_twin(scenario), name=f"fault-twin-{scenario.seed}")
+    key = repr(dataclasses.replace(twin_scenario, description=""))
+    if key not in twins:
+        twins[key] = hil_run(twin_scenario, label="twin")
+    return scenario, run, twins[key], float(target)
+
+
+def _twin_note(twin) -> str:
+    return f"; the twin run ended early: {twin.record['error']}" if twin.record.get(
+        "error") else ""
+
+
+@pytest.mark.parametrize(("scenario", "fault"), [
+    ("fault-inclinometer-stuck", "inclinometer_stuck"),
+    ("fault-inclinometer-noisy", "inclinometer_noisy"),
+    ("fault-draw-wire-lost", "draw_wire_lost"),
+    ("fault-gnss-fix-lost", "gnss_fix_lost"),
+])
+def test_sensor_fault(hil_run, hil_measure, hil_rig, twins, scenario: str, fault: str) -> None:
+    spec, run, twin, target = _fault_run(hil_run, hil_rig, twins, scenario)
+    onset = [e.at_s for e in spec.events if e.fault == fault]
+    assert len(onset) == 1, f"{scenario}: expected one '{fault}' fault"
+    cleared = [e.at_s for e in spec.events if e.clear == fault]
+    t, y = paired(run, twin, TRUE_DEPTH, target)
+    during = (t >= onset[0]) & np.isfinite(y)
+    if twin.record.get("error") or not during.any():
+        value, note = math.nan, "no paired samples during the fault" + _twin_note(twin)
+    else:
+        dev = y[during] - target
+        value = float(np.sqrt(np.mean(dev ** 2)))
+        before = np.abs(y[(t < onset[0]) & np.isfinite(y)] - target)
+        span = f"to {cleared[0]:g} s, judged to the end" if cleared else "to the end"
+        note = (f"fault from {onset[0]:g} s {span} ({t[during][-1] - onset[0]:.1f} s); "
+                f"paired true depth max {np.max(np.abs(dev)):.2f} mm, mean "
+                f"{np.mean(dev):+.2f} mm; before the fault max "
+                f"{float(before.max()) if before.size else math.nan:.3f} mm")
+    hil_measure("depth.fault.sensor.deviation", value, conditions={"fault": fault}, run=run,
+                note=note)
+
+
+@pytest.mark.parametrize(("scenario", "measurement", "kind"), [
+    ("fault-controller-silent-recovery", "depth.silence.recovery_time", "silence"),
+    ("fault-dut-restart", "depth.restart.recovery_time", "restart"),
+])
+def test_controller_recovery(hil_run, hil_measure, hil_rig, twins, scenario: str,
+                             measurement: str, kind: str) -> None:
+    spec, run, twin, target = _fault_run(hil_run, hil_rig, twins, scenario)
+    if kind == "silence":
+        ends = [e.at_s for e in spec.events if e.clear == "controller_silent"]
+    else:
+        ends = [e.at_s for e in spec.events if e.dut == "restart"]
+    assert len(ends) == 1, f"{scenario}: expected one {kind} event to time the recovery from"
+    t0 = ends[0]
+    t, y = paired(run, twin, TRUE_DEPTH, target)
+    if twin.record.get("error"):
+        value, note = math.nan, _twin_note(twin).removeprefix("; ")
+    else:
+        value = recovery_time(t, y, t0=t0, target=target, band=BAND, **FILTER)
+        after = (t >= t0 - 5.0) & np.isfinite(y)
+        verdict = ("never back in the band for 1 s before the end" if math.isnan(value)
+                   else "it never left the band" if value == 0.0 else "back in the band")
+        note = (f"from {t0:g} s: {verdict} (±{BAND:.0%}, {BAND * target:g} mm); paired true "
+                f"depth {np.min(y[after]):.1f}-{np.max(y[after]):.1f} mm from 5 s before")
+    hil_measure(measurement, value, run=run, note=note)
