@@ -287,8 +287,8 @@ class SowingDepthPlant:
         eta_g = self._eta * blk.soil_gain[j]
         tilt = blk.tilt_rad[j]
         sigma = self._sigma
-        noise = blk.row_noise[j]
-        uniform = blk.row_uniform[j]
+        noise = blk.row_noise[j].tolist()
+        uniform = blk.row_uniform[j].tolist()
         p_clod = self._p_clod * blk.clod_factor[j]
         p_bounce = self._p_bounce
         p_stubble = self._p_stubble * blk.stubble_factor[j]
