@@ -82,6 +82,8 @@ _SPECS = (
                     "without the restart, is back in +/-5 %"),
     MeasurementSpec("depth.busload.pass_rate", "%", "sowing_depth",
                     "pass rate of a field run on a bus loaded near its bit rate"),
+    MeasurementSpec("depth.busload.inlier_cv", "%", "sowing_depth",
+                    "CV of the in-band seeds of a field run on a bus loaded near its bit rate"),
     # both rigs
     MeasurementSpec("rig.timing.lateness_p99", "us", "*",
                     "99th percentile of the rig's period lateness (real time only)"),
