@@ -74,6 +74,9 @@ _SPECS = (
     MeasurementSpec("depth.fault.sensor.deviation", "mm", "sowing_depth",
                     "RMS, over a sensor fault, of the true depth minus that of the same run "
                     "without the fault (same seed)"),
+    MeasurementSpec("depth.fault.saturation.recovery_time", "s", "sowing_depth",
+                    "time after the target returns into reach (5 s at 90 mm) until the true "
+                    "depth, paired with its run at 30 mm throughout, is back in +/-5 %"),
     MeasurementSpec("depth.silence.recovery_time", "s", "sowing_depth",
                     "time after the DUT's frames reach the rig again (5 s of cut wire) until "
                     "the true depth, paired with its run without the cut, is back in +/-5 %"),

@@ -12,8 +12,10 @@ import test_suites.sowing_depth.test_depth_faults as suite
 from plant_emulators.sowing_depth.rig import SowingDepthRig
 from test_suites.sowing_depth.pairing import hold_twin
 
-SCENARIOS = ("fault-inclinometer-stuck", "fault-inclinometer-noisy", "fault-draw-wire-lost",
-             "fault-gnss-fix-lost", "fault-controller-silent-recovery", "fault-dut-restart")
+SCENARIOS = ("fault-inclinometer-stuck", "fault-inclinometer-noisy", "fault-inclinometer-lost",
+             "fault-inclinometer-open-circuit", "fault-draw-wire-lost", "fault-gnss-fix-lost",
+             "fault-controller-silent-recovery", "fault-dut-restart",
+             "fault-saturation-recovery")
 
 
 def test_the_suite_runs_these_scenarios() -> None:
@@ -35,9 +37,12 @@ def test_the_fault_scenarios_share_one_twin() -> None:
                              "target differ): the suite's docstring and run time say they do")
 
 
-def test_the_faults_start_at_20_s_and_the_wire_is_cut_for_5_s() -> None:
+def test_the_faults_start_at_20_s_and_last_5_s() -> None:
     silence = SowingDepthRig.load_scenario("fault-controller-silent-recovery")
     assert [(e.at_s, e.fault or e.clear) for e in silence.events] == [
         (20.0, "controller_silent"), (25.0, "controller_silent")]
     restart = SowingDepthRig.load_scenario("fault-dut-restart")
     assert [(e.at_s, e.dut) for e in restart.events] == [(20.0, "restart")]
+    saturation = SowingDepthRig.load_scenario("fault-saturation-recovery")
+    assert [(e.at_s, e.set) for e in saturation.events] == [
+        (20.0, {"target_depth_mm": 90.0}), (25.0, {"target_depth_mm": 30.0})]

@@ -82,7 +82,12 @@ class DrawWireDevice(PeriodicDevice):
 
 
 class InclinometerDevice(PeriodicDevice):
-    """The analog input node reading the LVT525H's two 0-5 V outputs, in mV."""
+    """The analog input node reading the LVT525H's two 0-5 V outputs, in mV.
+
+    Fault hooks: ``lost`` (the node is off the bus: no frames), ``x_open_circuit`` (the X
+    output's wire is broken: the module reads 0 mV there, status "below range"). The sensor
+    is sampled either way, so its noise stream stays the same as in a run without the fault.
+    """
 
     def __init__(self, plant: SowingDepthPlant, sensor: Inclinometer, codec: FrameCodec,
                  period_s: float) -> None:
@@ -90,16 +95,21 @@ class InclinometerDevice(PeriodicDevice):
         self.plant, self.sensor, self.codec = plant, sensor, codec
         self.counter = 0
         self.last_x_mv = 0
+        self.lost = False
+        self.x_open_circuit = False
 
     def frames(self, time_s: float) -> list[can.Message]:
         p = self.plant
         reading = self.sensor.sample(time_s, p.arm.sensor_angle_deg(p.arm_angle_deg),
                                      p.machine_roll_deg, p.ground_speed_mps)
+        if self.lost:
+            return []
+        x_mv = 0 if self.x_open_circuit else reading.x_mv
         self.counter = (self.counter + 1) % 16
-        self.last_x_mv = reading.x_mv
+        self.last_x_mv = x_mv
         return [self.codec.encode(InclinometerFrame(
-            x_mv=reading.x_mv, y_mv=reading.y_mv,
-            x_status=_status(reading.x_mv), y_status=_status(reading.y_mv),
+            x_mv=x_mv, y_mv=reading.y_mv,
+            x_status=_status(x_mv), y_status=_status(reading.y_mv),
             counter=self.counter))]
 
 

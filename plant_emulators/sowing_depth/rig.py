@@ -50,6 +50,9 @@ class SowingDepthRig(Rig):
     faults: ClassVar[dict[str, str]] = {
         "inclinometer_stuck": "the inclinometer output freezes",
         "inclinometer_noisy": "the inclinometer output gets very noisy (loose mounting)",
+        "inclinometer_lost": "the inclinometer's analog input node stops sending",
+        "inclinometer_open_circuit": "the inclinometer's X output wire breaks (0 mV, status "
+                                     "below range)",
         "draw_wire_lost": "the draw-wire sensor stops sending",
         "drive_jammed": "the cylinder rod is blocked (a stone): the drive trips on "
                         "overcurrent or following error",
@@ -134,6 +137,10 @@ class SowingDepthRig(Rig):
             self.inclinometer.stuck = active
         elif name == "inclinometer_noisy":
             self.inclinometer.noisy = active
+        elif name == "inclinometer_lost":
+            self.incl_device.lost = active
+        elif name == "inclinometer_open_circuit":
+            self.incl_device.x_open_circuit = active
         elif name == "draw_wire_lost":
             self.draw_wire.lost = active
         elif name == "drive_jammed":

@@ -12,7 +12,8 @@ The true depth is judged, not the sensed one: in a sensor fault the sensed depth
 is broken.
 
 * **sensor faults** (``depth.fault.sensor.deviation``, condition ``fault``): from 20 s the
-  inclinometer freezes, gets very noisy (a loose mounting: x20 noise), the
+  inclinometer freezes, gets very noisy (a loose mounting: x20 noise), stops sending (its
+  analog input node is off the bus), or its X wire breaks (0 mV, status "below range"); the
   draw-wire sensor stops sending, or the GNSS receiver loses its fix (for 10 s; the ground
   speed still comes from the tractor's GBSD). The value is the RMS of ``y - 30`` from the
   fault's onset to the end of the run (recovering after a cleared fault is part of it), in
@@ -29,6 +30,10 @@ is broken.
 * **restart** (``depth.restart.recovery_time``): the controller is power-cycled at 20 s (its
   state is lost; the drive stays Operational with its last command). The time from 20 s
   until ``y`` is back in the band, as above; 0 s when it never left.
+* **saturation** (``depth.fault.saturation.recovery_time``): the target jumps to 90 mm, out of
+  the roller's reach, at 20 s and returns to 30 mm at 25 s; the twin holds 30 mm. The time
+  from 25 s until ``y`` is back in the band: a controller that wound up against the end of
+  travel overshoots on the way back.
 
 The fault scenarios share seed, speed and target, so they share one twin run, made once per
 session. The filter and the band are the step suite's (:mod:`test_depth_step`): the paired signal
@@ -63,8 +68,11 @@ def twins() -> dict[str, object]:
 def _fault_run(hil_run, hil_rig, twins, name: str):
     scenario = hil_rig.load_scenario(name)
     target = scenario.initial.get("target_depth_mm")
-    if any(e.set and "target_depth_mm" in e.set for e in scenario.events) or target is None:
-        raise AssertionError(f"{name}: the fault suites need a fixed target depth")
+    targets = [e.set["target_depth_mm"] for e in scenario.events
+               if e.set and "target_depth_mm" in e.set]
+    if target is None or (targets and targets[-1] != target):
+        raise AssertionError(f"{name}: the fault suites need a target depth that ends where "
+                             "it began")
     run = hil_run(scenario)
     twin_scenario = dataclasses.replace(hold_twin(scenario), name=f"fault-twin-{scenario.seed}")
     key = repr(dataclasses.replace(twin_scenario, description=""))
@@ -81,6 +89,8 @@ def _twin_note(twin) -> str:
 @pytest.mark.parametrize(("scenario", "fault"), [
     ("fault-inclinometer-stuck", "inclinometer_stuck"),
     ("fault-inclinometer-noisy", "inclinometer_noisy"),
+    ("fault-inclinometer-lost", "inclinometer_lost"),
+    ("fault-inclinometer-open-circuit", "inclinometer_open_circuit"),
     ("fault-draw-wire-lost", "draw_wire_lost"),
     ("fault-gnss-fix-lost", "gnss_fix_lost"),
 ])
@@ -109,14 +119,17 @@ def test_sensor_fault(hil_run, hil_measure, hil_rig, twins, scenario: str, fault
 @pytest.mark.parametrize(("scenario", "measurement", "kind"), [
     ("fault-controller-silent-recovery", "depth.silence.recovery_time", "silence"),
     ("fault-dut-restart", "depth.restart.recovery_time", "restart"),
+    ("fault-saturation-recovery", "depth.fault.saturation.recovery_time", "saturation"),
 ])
 def test_controller_recovery(hil_run, hil_measure, hil_rig, twins, scenario: str,
                              measurement: str, kind: str) -> None:
     spec, run, twin, target = _fault_run(hil_run, hil_rig, twins, scenario)
     if kind == "silence":
         ends = [e.at_s for e in spec.events if e.clear == "controller_silent"]
-    else:
+    elif kind == "restart":
         ends = [e.at_s for e in spec.events if e.dut == "restart"]
+    else:       # saturation: the target returns into reach
+        ends = [e.at_s for e in spec.events if e.set and "target_depth_mm" in e.set][-1:]
     assert len(ends) == 1, f"{scenario}: expected one {kind} event to time the recovery from"
     t0 = ends[0]
     t, y = paired(run, twin, TRUE_DEPTH, target)

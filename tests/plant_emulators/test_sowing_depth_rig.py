@@ -17,6 +17,7 @@ from hil.record import load_traces
 from hil.rig import Event, RunOptions, Scenario, run_scenario
 from hil.softbus import SoftwareBus
 from plant_emulators.sowing_depth.controllers import PiDepthController, next_controlword
+from plant_emulators.sowing_depth.frames import FrameCodec
 from plant_emulators.sowing_depth.nmea import parse_sentence
 from plant_emulators.sowing_depth.rig import EDS, SowingDepthRig
 
@@ -102,6 +103,25 @@ def test_draw_wire_lost_stops_its_frames(tmp_path: Path) -> None:
     stamps = [m.timestamp for m in can.LogReader(tmp_path / "bus.log")
               if m.arbitration_id == 0x0CFF10A0 and not m.is_rx]
     assert max(stamps) < 3.0 and len(stamps) > 250
+
+
+def test_inclinometer_lost_stops_its_frames(tmp_path: Path) -> None:
+    _run(tmp_path, _scenario(6.0, (Event(at_s=3.0, fault="inclinometer_lost"),)))
+    stamps = [m.timestamp for m in can.LogReader(tmp_path / "bus.log")
+              if m.arbitration_id == 0x0CFF11A1 and not m.is_rx]
+    assert max(stamps) < 3.0 and len(stamps) > 250
+
+
+def test_inclinometer_open_circuit_reads_0_mv_below_range(tmp_path: Path) -> None:
+    _run(tmp_path, _scenario(6.0, (Event(at_s=3.0, fault="inclinometer_open_circuit"),)))
+    codec = FrameCodec()
+    frames = [(m.timestamp, codec.decode(m)) for m in can.LogReader(tmp_path / "bus.log")
+              if m.arbitration_id == 0x0CFF11A1 and not m.is_rx]
+    before = [f for t, f in frames if t < 2.99]
+    after = [f for t, f in frames if t > 3.01]
+    assert len(after) > 250 and all(f.x_mv == 0 and f.x_status == "below range" for f in after)
+    assert all(f.x_status == "ok" and f.x_mv > 1000 for f in before)
+    assert all(f.y_status == "ok" for f in after)            # only the X wire broke
 
 
 def test_gnss_sentences_reach_a_serial_reader_during_a_run(tmp_path: Path) -> None:
