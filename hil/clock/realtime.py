@@ -6,12 +6,14 @@ accumulate). The clock sleeps until ``spin_s`` before the deadline, then spins o
 every few seconds on a shared machine (see the project's measurements). When the process may,
 the stepping thread runs SCHED_FIFO; when it may not, the record says so.
 
-The garbage collector is collected once and frozen for the run (``gc.freeze``): a full
-collection walks every object the process holds, ~84,000 on the sowing-depth rig (numpy,
-scipy, canopen, cantools …), and took 46-50 ms in the middle of a run, a stall that alone
-made a run ``invalid-bench``. Frozen, those objects are left out of every collection, which then
-walk only what the run itself made. Collection stays on (cycles made during the run are still
-collected); ``stop`` unfreezes.
+What the process holds when the run starts is frozen for the run (``gc.freeze``): a full
+collection walks every tracked object, ~84,000 on the sowing-depth rig (numpy, scipy, canopen,
+cantools …), and took 46-50 ms in the middle of a run, a stall that alone made a run
+``invalid-bench``. Frozen, those objects are left out of every collection, which then walk only
+what the run itself made. Collection stays on (cycles made during the run are still collected);
+``stop`` unfreezes, and the next full collection sees everything again. Freezing costs nothing
+(it moves lists); collecting first would not: in a test process it takes 100 ms or more, with
+the GIL, while other threads of the process may be timing something.
 """
 
 from __future__ import annotations
@@ -48,7 +50,6 @@ class RealtimeClock(Clock):
 
     def _on_start(self) -> None:
         self._lateness = array("d")
-        gc.collect()
         gc.freeze()
         self.scheduler = self._raise_priority()
         self._t0 = time.perf_counter()
