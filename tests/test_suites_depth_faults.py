@@ -5,7 +5,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import inspect
 
 import test_suites.sowing_depth.test_depth_faults as suite
@@ -32,7 +31,7 @@ def test_the_fault_scenarios_share_one_twin() -> None:
         assert (twin.duration_s, twin.initial, twin.speed_profile) == (
             scenario.duration_s, scenario.initial, scenario.speed_profile)
         assert scenario.events, name
-        twins.add(repr(dataclasses.replace(twin, name="", description="")))
+        twins.add(repr(suite._twin(scenario)))
     assert len(twins) == 1, ("the fault scenarios no longer share one twin run (seed, speed or "
                              "target differ): the suite's docstring and run time say they do")
 

@@ -36,8 +36,9 @@ is broken.
   travel overshoots on the way back.
 
 The fault scenarios share seed, speed and target, so they share one twin run, made once per
-session. The filter and the band are the step suite's (:mod:`test_depth_step`): the paired signal
-needs no smoothing against soil noise, the median only removes sample-level flicker.
+session (the session caches runs by scenario). The filter and the band are the step suite's
+(:mod:`test_depth_step`): the paired signal needs no smoothing against soil noise, the median
+only removes sample-level flicker.
 """
 
 from __future__ import annotations
@@ -49,6 +50,7 @@ import numpy as np
 import pytest
 
 from hil.metrics import recovery_time
+from hil.rig.scenario import Scenario
 from test_suites.sowing_depth.pairing import hold_twin, paired
 
 pytestmark = [pytest.mark.hil_rig("sowing_depth"), pytest.mark.hil_suite("robustness")]
@@ -58,14 +60,18 @@ BAND = 0.05
 FILTER = {"filter_kind": "median", "filter_s": 0.2}
 
 
-@pytest.fixture(scope="module")
-def twins() -> dict[str, object]:
-    """Twin runs by scenario content: the fault scenarios share seed, speed and target, so
-    their twins are one and the same run, made once."""
-    return {}
+def _twin(scenario: Scenario) -> Scenario:
+    """The scenario without its events, named and described by what it is, not by the fault
+    it pairs with: the fault scenarios share seed, speed and target, so every test asks for
+    the same twin and the session's run cache makes it once."""
+    held = hold_twin(scenario)
+    return dataclasses.replace(
+        held, name=f"fault-twin-seed{scenario.seed}",
+        description=f"the fault scenarios without their events (seed {scenario.seed}, "
+                    f"{scenario.initial.get('target_depth_mm'):g} mm)")
 
 
-def _fault_run(hil_run, hil_rig, twins, name: str):
+def _fault_run(hil_run, hil_rig, name: str):
     scenario = hil_rig.load_scenario(name)
     target = scenario.initial.get("target_depth_mm")
     targets = [e.set["target_depth_mm"] for e in scenario.events
@@ -73,12 +79,7 @@ def _fault_run(hil_run, hil_rig, twins, name: str):
     if target is None or (targets and targets[-1] != target):
         raise AssertionError(f"{name}: the fault suites need a target depth that ends where "
                              "it began")
-    run = hil_run(scenario)
-    twin_scenario = dataclasses.replace(hold_twin(scenario), name=f"fault-twin-{scenario.seed}")
-    key = repr(dataclasses.replace(twin_scenario, description=""))
-    if key not in twins:
-        twins[key] = hil_run(twin_scenario, label="twin")
-    return scenario, run, twins[key], float(target)
+    return scenario, hil_run(scenario), hil_run(_twin(scenario), label="twin"), float(target)
 
 
 def _twin_note(twin) -> str:
@@ -94,8 +95,8 @@ def _twin_note(twin) -> str:
     ("fault-draw-wire-lost", "draw_wire_lost"),
     ("fault-gnss-fix-lost", "gnss_fix_lost"),
 ])
-def test_sensor_fault(hil_run, hil_measure, hil_rig, twins, scenario: str, fault: str) -> None:
-    spec, run, twin, target = _fault_run(hil_run, hil_rig, twins, scenario)
+def test_sensor_fault(hil_run, hil_measure, hil_rig, scenario: str, fault: str) -> None:
+    spec, run, twin, target = _fault_run(hil_run, hil_rig, scenario)
     onset = [e.at_s for e in spec.events if e.fault == fault]
     assert len(onset) == 1, f"{scenario}: expected one '{fault}' fault"
     cleared = [e.at_s for e in spec.events if e.clear == fault]
@@ -121,9 +122,9 @@ def test_sensor_fault(hil_run, hil_measure, hil_rig, twins, scenario: str, fault
     ("fault-dut-restart", "depth.restart.recovery_time", "restart"),
     ("fault-saturation-recovery", "depth.fault.saturation.recovery_time", "saturation"),
 ])
-def test_controller_recovery(hil_run, hil_measure, hil_rig, twins, scenario: str,
-                             measurement: str, kind: str) -> None:
-    spec, run, twin, target = _fault_run(hil_run, hil_rig, twins, scenario)
+def test_controller_recovery(hil_run, hil_measure, hil_rig, scenario: str, measurement: str,
+                             kind: str) -> None:
+    spec, run, twin, target = _fault_run(hil_run, hil_rig, scenario)
     if kind == "silence":
         ends = [e.at_s for e in spec.events if e.clear == "controller_silent"]
     elif kind == "restart":
