@@ -21,12 +21,33 @@ from __future__ import annotations
 import contextlib
 import gc
 import os
+import threading
 import time
 from array import array
 
 import numpy as np
 
 from hil.clock.base import Clock, TimingHealth, TimingLimits
+
+_frozen_lock = threading.Lock()
+_frozen_runs = 0
+
+
+def _freeze() -> None:
+    """``gc.freeze()`` for a run; runs may overlap (threads of one process), so the heap is
+    unfrozen only when the last of them stops."""
+    global _frozen_runs
+    with _frozen_lock:
+        _frozen_runs += 1
+        gc.freeze()     # also for the 2nd run: what the 1st made meanwhile is frozen too
+
+
+def _unfreeze() -> None:
+    global _frozen_runs
+    with _frozen_lock:
+        _frozen_runs = max(0, _frozen_runs - 1)
+        if _frozen_runs == 0:
+            gc.unfreeze()
 
 
 class RealtimeClock(Clock):
@@ -47,11 +68,13 @@ class RealtimeClock(Clock):
         self._t0 = 0.0
         self._lateness = array("d")
         self._previous_policy: tuple[int, int] | None = None
+        self._frozen = False
 
     def _on_start(self) -> None:
         self._lateness = array("d")
-        gc.freeze()
         self.scheduler = self._raise_priority()
+        _freeze()
+        self._frozen = True
         self._t0 = time.perf_counter()
 
     def _raise_priority(self) -> str:
@@ -69,7 +92,9 @@ class RealtimeClock(Clock):
         return f"SCHED_FIFO priority {self.fifo_priority}"
 
     def _on_stop(self) -> None:
-        gc.unfreeze()
+        if self._frozen:
+            self._frozen = False
+            _unfreeze()
         if self._previous_policy is not None:
             policy, priority = self._previous_policy
             with contextlib.suppress(OSError):

@@ -236,9 +236,9 @@ class _Loop:
 
         dut_check_ticks = max(1, round(rig.control_period_s / dt))
         next_dut_check = dut_check_ticks
-        clock.start()
         k = 0
         try:
+            clock.start()
             while True:
                 t = k * dt
                 if event_tick <= k:
@@ -310,7 +310,8 @@ def _record_bus_stats(rec: Recorder, softbus: Any) -> None:
     noted, not raised: the run's own error, if any, is the one to report)."""
     try:
         rec.meta["softbus"] = softbus.stats()
-    except (BusError, OSError) as exc:     # OSError: SoftwareBusError of an embedded bus
+    except (BusError, OSError, ValueError) as exc:
+        # OSError: SoftwareBusError of an embedded bus; ValueError: a reply cut short
         rec.meta["softbus"] = {"error": str(exc)}
 
 

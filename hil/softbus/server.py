@@ -1139,8 +1139,10 @@ class SoftwareBusProcess:
                     sel.close()
                     return self
         sel.close()
+        self._end(timeout=5.0)
+        detail = self._stderr()
         self.stop()
-        raise SoftwareBusError(f"software bus process did not start: {self._stderr()}")
+        raise SoftwareBusError(f"software bus process did not start: {detail}")
 
     def _stderr(self) -> str:
         if self.proc is None or self.proc.stderr is None:
@@ -1159,7 +1161,8 @@ class SoftwareBusProcess:
         reply = control(self.host, self.port, ["stats"])
         return dict(json.loads(reply[len("< hil stats "):-2]))
 
-    def stop(self, timeout: float = 5.0) -> None:
+    def _end(self, timeout: float) -> None:
+        """Terminate the child (kill it if it does not go), leaving its pipes readable."""
         if self.proc is None or self.proc.poll() is not None:
             return
         self.proc.terminate()
@@ -1168,6 +1171,16 @@ class SoftwareBusProcess:
         except subprocess.TimeoutExpired:
             self.proc.kill()
             self.proc.wait(timeout)
+
+    def stop(self, timeout: float = 5.0) -> None:
+        if self.proc is None:
+            return
+        try:
+            self._end(timeout)
+        finally:
+            for pipe in (self.proc.stdout, self.proc.stderr):
+                if pipe is not None and not pipe.closed:
+                    pipe.close()
 
     def __enter__(self) -> SoftwareBusProcess:
         return self.start()

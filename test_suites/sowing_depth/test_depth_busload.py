@@ -8,9 +8,11 @@ commands queue in arbitration. Real time even in a lockstep qualification: locks
 no wire to load. The load actually carried is read back from the bus log and stated in the
 note.
 
-The pass rate alone does not tell a controller from none: the 20-40 mm band is wide, and a
-controller that never moves the roller scores 93 % on this plot. The inlier CV does: a loop that
-oscillates (the high-gain must-fail, 16 % in lockstep) spreads the in-band seeds.
+The pass rate alone judges little: the 20-40 mm band is wide. The inlier CV catches a loop
+that oscillates (the high-gain must-fail: 16 % in lockstep; it still scores 91.5 % pass rate
+under load). Neither catches a controller that never moves the roller (93 % and 4.1 % on the
+3-5 km/h plot in lockstep): on this plot's gentle terrain a fixed roller holds the band, and
+only the step suite finds it out.
 """
 
 from __future__ import annotations

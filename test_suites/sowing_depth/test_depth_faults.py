@@ -66,9 +66,9 @@ def _twin(scenario: Scenario) -> Scenario:
     the same twin and the session's run cache makes it once."""
     held = hold_twin(scenario)
     return dataclasses.replace(
-        held, name=f"fault-twin-seed{scenario.seed}",
-        description=f"the fault scenarios without their events (seed {scenario.seed}, "
-                    f"{scenario.initial.get('target_depth_mm'):g} mm)")
+        held, name="fault-twin",
+        description=f"the fault scenarios without their events (target "
+                    f"{scenario.initial.get('target_depth_mm'):g} mm throughout)")
 
 
 def _fault_run(hil_run, hil_rig, name: str):
@@ -136,6 +136,11 @@ def test_controller_recovery(hil_run, hil_measure, hil_rig, scenario: str, measu
     t, y = paired(run, twin, TRUE_DEPTH, target)
     if twin.record.get("error"):
         value, note = math.nan, _twin_note(twin).removeprefix("; ")
+    elif run.record.get("error") or int(np.count_nonzero(t >= t0)) < 2:
+        # the DUT did not come back (or the run ended before t0): nothing to time; the
+        # measurement notes why (hil_measure adds the run's error)
+        value, note = math.nan, f"the run ended at {t[-1]:.2f} s, before a recovery from " \
+                                f"{t0:g} s could be timed"
     else:
         value = recovery_time(t, y, t0=t0, target=target, band=BAND, **FILTER)
         after = (t >= t0 - 5.0) & np.isfinite(y)

@@ -3,8 +3,11 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import pytest
+
 from hil.cli.main import main
 from hil.softbus import SoftwareBusProcess
+from hil.softbus.server import SoftwareBusError
 
 
 def test_usage_error_exits_2(capsys) -> None:
@@ -38,3 +41,14 @@ def test_fault_and_stats_commands_against_a_running_bus(capsys) -> None:
         assert main(["bus", "fault", "--port", port, "clear"]) == 0
         assert main(["bus", "stats", "--port", port]) == 0
         assert '"frames_in": 0' in capsys.readouterr().out
+
+
+def test_a_bus_process_that_cannot_start_says_why_and_leaves_nothing_open() -> None:
+    with SoftwareBusProcess(port=0) as server:
+        second = SoftwareBusProcess(port=server.port)
+        with pytest.raises(SoftwareBusError, match="Address already in use"):
+            second.start(timeout=10)
+        assert second.proc is not None and second.proc.poll() is not None
+        assert second.proc.stdout is not None and second.proc.stdout.closed
+    assert server.proc is not None and server.proc.stdout is not None
+    assert server.proc.poll() is not None and server.proc.stdout.closed

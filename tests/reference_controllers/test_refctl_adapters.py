@@ -190,10 +190,16 @@ def test_depth_controller_holds_the_roller_on_a_frozen_inclinometer() -> None:
         assert speed > 0.0 and fault in (None, 0), i
     frozen = shallow + 99 % 3
     steps = [_depth_step(ctl, codec, frozen) for _ in range(100)]   # the output freezes
-    # the last change was at the step 99 frame: 0.5 s later the depth is dead
+    # the last change came with the frame of step 99 (t = 0.99 s): the step at 1.49 s still
+    # controls (0.5 s unchanged is not "more than" 0.5 s), the one at 1.50 s holds
     assert all(speed > 0.0 for speed, _ in steps[:50])
-    assert all(speed == 0.0 for speed, _ in steps[51:])
-    assert {fault for _, fault in steps[51:]} == {None, 1}
+    assert all(speed == 0.0 for speed, _ in steps[50:])
+    assert {fault for _, fault in steps[:50]} == {None, 0}
+    assert {fault for _, fault in steps[50:]} == {None, 1}
+    # a frame with a bad status is no sign of life, even with another voltage: still dead
+    # when the good frames come back with the frozen voltage
+    assert _depth_step(ctl, codec, frozen + 7, status=1)[0] == 0.0
+    assert _depth_step(ctl, codec, frozen)[0] == 0.0
     assert _depth_step(ctl, codec, frozen + 1)[0] > 0.0          # alive again
     for _ in range(51):                                  # stops sending: dead as well
         _depth_step(ctl, codec, None)
