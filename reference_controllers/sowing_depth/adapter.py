@@ -232,7 +232,8 @@ class DepthController(Controller):
             self.mode_sent = True
         controlword = next_controlword(self.statusword, self.last_controlword)
         self.last_controlword = controlword
-        valid = (self.depth_mm is not None and self.depth_ok and not self.frozen()
+        frozen = self.frozen()
+        valid = (self.depth_mm is not None and self.depth_ok and not frozen
                  and is_operation_enabled(self.statusword))
         enabled = self.enabled()
         speed, kp, ki, kd = self.core.step(self.target_mm, self.depth_mm or 0.0, valid,
@@ -243,13 +244,13 @@ class DepthController(Controller):
         self.drive.rpdo[2].transmit()
         out = self.network.take()
         if self.steps % STATUS_EVERY == 0:
-            out.append(self._status(valid and enabled))
+            out.append(self._status(valid and enabled, frozen))
             out.append(can.Message(arbitration_id=0x700 + CONTROLLER_NODE_ID,
                                    data=bytes([NMT_OPERATIONAL]), is_extended_id=False))
         self.steps += 1
         return out
 
-    def _status(self, controlling: bool) -> can.Message:
+    def _status(self, controlling: bool, frozen: bool) -> can.Message:
         if is_fault(self.statusword):
             state = "fault"
         elif self.manual:
@@ -263,7 +264,7 @@ class DepthController(Controller):
         depth = 0.0 if self.depth_mm is None else min(max(self.depth_mm, -100.0), 200.0)
         return self.codec.encode(ControllerStatus(
             measured_depth_mm=round(depth, 1), roller_position_command_mm=0.0, state=state,
-            sensor_fault=int(self.depth_mm is None or not self.depth_ok or self.frozen()),
+            sensor_fault=int(self.depth_mm is None or not self.depth_ok or frozen),
             drive_fault=int(is_fault(self.statusword)),
             speed_lost=int(self.speeds.speed(self.now_s) is None),
             counter=(self.steps // STATUS_EVERY) % 16))
