@@ -12,9 +12,8 @@ from __future__ import annotations
 import pytest
 
 from hil.metrics import accuracy_theta
-from hil.rig.busload import wire_load
-from hil.rig.runner import bus_load_refusal
 from test_suites.fertilizer.traces import delivered_and_target_g
+from test_suites.loaded_bus import run_on_loaded_bus
 
 pytestmark = [pytest.mark.hil_rig("fertilizer"), pytest.mark.hil_suite("busload")]
 
@@ -22,12 +21,8 @@ SCENARIO = "bench-busload-1700"
 
 
 def test_accuracy_on_a_loaded_bus(hil_session, hil_run, hil_measure, hil_rig) -> None:
-    why = bus_load_refusal(hil_session.bus, "realtime")
-    if why:
-        pytest.skip(f"bus load {why}")
-    result = hil_run(SCENARIO, clock="realtime")
+    result, load = run_on_loaded_bus(hil_session, hil_run, hil_rig, SCENARIO)
     delivered, target = delivered_and_target_g(result)
-    load = wire_load(str(result.out_dir / "bus.log"), hil_rig.bitrate_bps)
     hil_measure("flow.busload.accuracy", accuracy_theta(target, delivered), run=result,
                 conditions={"bus_load_pct": round(100 * result.record["bus_load"]["fraction"])},
                 note=f"weighed {delivered:.1f} g of {target:.1f} g; {100 * load:.1f} % of the "

@@ -20,8 +20,7 @@ from __future__ import annotations
 import pytest
 
 from hil.metrics import depth_statistics
-from hil.rig.busload import wire_load
-from hil.rig.runner import bus_load_refusal
+from test_suites.loaded_bus import run_on_loaded_bus
 from test_suites.sowing_depth.traces import plot_truth
 
 pytestmark = [pytest.mark.hil_rig("sowing_depth"), pytest.mark.hil_suite("busload")]
@@ -31,11 +30,7 @@ TARGET_MM = 30.0
 
 
 def test_pass_rate_on_a_loaded_bus(hil_session, hil_run, hil_measure, hil_rig) -> None:
-    why = bus_load_refusal(hil_session.bus, "realtime")
-    if why:
-        pytest.skip(f"bus load {why}")
-    result = hil_run(SCENARIO, clock="realtime")
-    load = wire_load(str(result.out_dir / "bus.log"), hil_rig.bitrate_bps)
+    result, load = run_on_loaded_bus(hil_session, hil_run, hil_rig, SCENARIO)
     conditions = {"speed_band_kmh": "5-7",
                   "bus_load_pct": round(100 * result.record["bus_load"]["fraction"])}
     if result.record.get("error"):
