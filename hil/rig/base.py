@@ -113,6 +113,12 @@ class Rig(ABC):
         """Ground truth as arrays (depth per row along the run …), saved as ``truth.npz``."""
         return {}
 
+    def physics_engines(self) -> dict[str, str]:
+        """Which implementation ran each model (``{"plant": "native", ...}``), for the record:
+        the engines give the same floats, so this tells how the run was computed, not what
+        it computed (see :mod:`plant_emulators.engine`). Empty: one Python implementation."""
+        return {}
+
     def dut_environment(self) -> dict[str, str]:
         """Environment a DUT process needs besides the bus (a serial port's path, say)."""
         return {}

@@ -373,6 +373,9 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
             rec.meta["rig_config_overrides"] = options.rig_config
         rig = rig_cls(ctx)
         stack.callback(rig.close)
+        engines = rig.physics_engines()
+        if engines:
+            rec.meta["physics_engines"] = engines
         dut_env = rig.dut_environment()
         rec.meta["dut_environment"] = dut_env
         if spec == "inline":

@@ -21,7 +21,11 @@ speed controller, so a 0-10 V command sets a *speed* and the plant is command â†
 3. **Transport.** A first-order dispersion, then a delay line tapped at the flow sensor and at
    the tube exit. Delivered grams (the truth a scale would weigh) accumulate at the exit.
 
-The hot loop is plain Python floats: numpy per step would cost more than the whole step.
+The hot loop exists twice (see :mod:`plant_emulators.engine`): the Python loop below, the
+reference, and its C twin (``native/plant_core.c``), which runs the same operations in the same
+order and gives the same floats bit for bit, several times faster. ``AGRIHIL_PHYSICS`` or the
+``engine`` argument picks one. The Python loop is plain floats: numpy per step would cost more
+than the whole step.
 It runs the drive and the meter step by step (they feed back through the hopper level); the
 transport, which feeds nothing back, then runs row by row over the whole call. Constants of a
 step size are computed once, when the step size is bound.
@@ -43,10 +47,12 @@ Example
 from __future__ import annotations
 
 import math
+from functools import partial
 from typing import NamedTuple
 
 import numpy as np
 
+from plant_emulators.engine import Engine, load_native, resolve_engine
 from plant_emulators.fertilizer.config import RPM_PER_RAD_S, FertilizerRigConfig
 from plant_emulators.fertilizer.flow_map import FlowMap
 from plant_emulators.fertilizer.noise import NormalStream, ou_coefficients, spawn
@@ -179,6 +185,8 @@ class FertilizerPlant:
         The rig configuration (sections motor, drive, meter, fertilizer, transport are used).
     rng : numpy.random.Generator
         The run's generator; the plant spawns its own child stream from it at construction.
+    engine : {"native", "python"}, optional
+        Which step loop runs (the same floats either way); None: ``AGRIHIL_PHYSICS``.
 
     Attributes
     ----------
@@ -205,8 +213,10 @@ class FertilizerPlant:
         interval is the difference of two readings divided by the interval.
     """
 
-    def __init__(self, config: FertilizerRigConfig, rng: np.random.Generator) -> None:
+    def __init__(self, config: FertilizerRigConfig, rng: np.random.Generator, *,
+                 engine: str | None = None) -> None:
         self.config = config
+        self.engine: Engine = resolve_engine(engine)
         motor = config.motor
         drive = config.drive
         meter = config.meter
@@ -216,7 +226,7 @@ class FertilizerPlant:
         self._flow_map = FlowMap.from_config(meter)
 
         own = spawn(rng)
-        self._z = NormalStream(spawn(own))
+        z_rng = spawn(own)
         # Per-run draws, in a fixed order.
         self.row_gain: tuple[float, ...] = tuple(
             max(0.5, 1.0 + meter.row_spread_sd_frac * float(v))
@@ -228,7 +238,22 @@ class FertilizerPlant:
                                            * float(own.standard_normal()))
         """This run's fertilizer delivery offset relative to the calibration (fraction)."""
         self._density_wander = fert.density_drift_sd_frac * float(own.standard_normal())
-        self._charge = [self._draw_charge() for _ in range(rows)]
+        cos_off = [math.cos(2.0 * math.pi * f) for f in flute_offsets]
+        sin_off = [math.sin(2.0 * math.pi * f) for f in flute_offsets]
+        self._core = None
+        if self.engine == "native":
+            native = load_native("plant_emulators.fertilizer._plant_native")
+            # The twin draws its noise from the same generator in the same blocks as the
+            # Python loop's NormalStream, starting with each row's first flute charge.
+            self._core = native.PlantCore(
+                rows, meter.flute_charge_sd_frac, 1.0 + self.density_offset_frac,
+                self.row_gain, flute_offsets, cos_off, sin_off,
+                fert.hopper_initial_kg * 1000.0, self._density_wander,
+                partial(z_rng.standard_normal, native.NORMAL_BLOCK))
+            self._charge = list(self._core.charges())
+        else:
+            self._z = NormalStream(z_rng)
+            self._charge = [self._draw_charge() for _ in range(rows)]
 
         # Inputs.
         self.command_v = 0.0
@@ -255,8 +280,8 @@ class FertilizerPlant:
 
         # Meter constants.
         self._flute_offsets = flute_offsets
-        self._cos_off = [math.cos(2.0 * math.pi * f) for f in flute_offsets]
-        self._sin_off = [math.sin(2.0 * math.pi * f) for f in flute_offsets]
+        self._cos_off = cos_off
+        self._sin_off = sin_off
         self._flute_index = [int(f) for f in flute_offsets]
         # Per-row values the inner loop reads, packed so that one tuple unpacking replaces
         # four list subscripts per row and step; rebuilt when a row's flute charge changes.
@@ -317,6 +342,9 @@ class FertilizerPlant:
         self._meter = self._meter_constants(dt)
         tau_d = tr.dispersion_time_s
         self._alpha = 1.0 - math.exp(-dt / tau_d) if tau_d > 0.0 else 1.0
+        if self._core is not None:
+            self._lines = []
+            self._core.bind(dt, self._drive, self._meter, self._alpha, to_sensor, to_exit)
         self._dt = dt
 
     def _drive_constants(self, dt: float) -> _DriveConstants:
@@ -382,6 +410,11 @@ class FertilizerPlant:
         v_cmd = min(max(self.command_v, 0.0), motor.command_full_scale_v)
         w_target = v_cmd * self._w_per_v if v_cmd > motor.command_deadband_v else 0.0
         stalled = bool(self.stalled)
+        if self._core is not None:
+            self._core.advance(n, w_target, stalled)
+            self._steps += n
+            self._update_outputs()
+            return
 
         # Constants of this step size: one tuple unpacking each (fields in declared order)
         # instead of rebuilding them from the configuration on every call.
@@ -594,6 +627,19 @@ class FertilizerPlant:
     # ------------------------------------------------------------------ outputs
     def _update_outputs(self) -> None:
         dt = self._dt or 0.0
+        core = self._core
+        if core is not None:
+            (self._w, self._w_ref, self._xi, self._i, self._i2t, self._derated, self._rev,
+             self._hopper_g, self._density_wander) = core.state()
+            if self._dt is not None:
+                (self.sensor_passed_g, self.delivered_g, self.flow_at_meter_gps,
+                 self.flow_at_sensor_gps) = core.rows_out()
+            else:
+                self.sensor_passed_g = self.delivered_g = (0.0,) * self._rows
+        else:
+            state = self._row_state
+            self.sensor_passed_g = tuple([row[2] * dt for row in state])
+            self.delivered_g = tuple([row[3] * dt for row in state])
         self.time_s = self._steps * dt
         self.motor_speed_rpm = self._w * RPM_PER_RAD_S
         self.shaft_speed_rpm = self.motor_speed_rpm / self.config.drive.total_ratio
@@ -604,13 +650,12 @@ class FertilizerPlant:
         self.shaft_revolutions = self._rev
         self.hopper_kg = self._hopper_g / 1000.0
         self.density_factor = 1.0 + self.density_offset_frac + self._density_wander
-        state = self._row_state
-        self.sensor_passed_g = tuple([row[2] * dt for row in state])
-        self.delivered_g = tuple([row[3] * dt for row in state])
 
     @property
     def metered_g(self) -> tuple[float, ...]:
         """Per row: grams that have left the roller (computed on access: rarely read)."""
+        if self._core is not None:
+            return tuple(self._core.metered())
         dt = self._dt or 0.0
         return tuple([row[0] * dt for row in self._row_state])
 

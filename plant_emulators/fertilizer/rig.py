@@ -141,6 +141,9 @@ class FertilizerRig(Rig):
         self.target_mass_g += target * span
         self.time_s += span
 
+    def physics_engines(self) -> dict[str, str]:
+        return {"plant": self.plant.engine}
+
     # --- scenario --------------------------------------------------------------------------
     def set_input(self, name: str, value: float, time_s: float) -> None:
         t = self.terminal
