@@ -20,4 +20,10 @@ setup(ext_modules=[
                        "plant_emulators/fertilizer/native/plant_module.c"],
               depends=["plant_emulators/fertilizer/native/plant_core.h", *SHARED_HEADERS],
               extra_compile_args=EXACT_FLOATS),
+    Extension("plant_emulators.fertilizer._ground_speed_native",
+              sources=["plant_emulators/fertilizer/native/ground_speed_core.c",
+                       "plant_emulators/fertilizer/native/ground_speed_module.c"],
+              depends=["plant_emulators/fertilizer/native/ground_speed_core.h",
+                       *SHARED_HEADERS],
+              extra_compile_args=EXACT_FLOATS),
 ])

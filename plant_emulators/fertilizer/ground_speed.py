@@ -21,6 +21,13 @@ and vibration").
 Same contract as the plant: randomness drawn from the generator given at construction, noise
 in pre-drawn blocks, and ``advance(n, dt)`` equal to ``n`` x ``advance(1, dt)`` exactly.
 
+The step loop exists twice (see :mod:`plant_emulators.engine`): the Python loop below, the
+reference, and its C twin (``native/ground_speed_core.c``), which runs the same operations in
+the same order and gives the same floats bit for bit. ``AGRIHIL_PHYSICS`` or the ``engine``
+argument picks one. With the twin, the state, the outputs and the Hall edges live in the C
+object: :meth:`GroundSpeedModel.advance` gets the outputs back in one tuple and
+:meth:`GroundSpeedModel.hall_report` is computed there too.
+
 Example
 -------
 >>> import numpy as np
@@ -39,10 +46,12 @@ from __future__ import annotations
 import enum
 import math
 from collections import deque
+from functools import partial
 from typing import NamedTuple
 
 import numpy as np
 
+from plant_emulators.engine import Engine, load_native, resolve_engine
 from plant_emulators.fertilizer.config import GroundSpeedConfig
 from plant_emulators.fertilizer.noise import NormalStream, ou_coefficients, spawn
 
@@ -52,7 +61,9 @@ _SLOW_UPDATE_S = 0.005
 """Update period (s) of the random processes (variation, slips, radar noise, vibration)."""
 
 _EDGE_HISTORY = 512
-"""Hall edge times kept for the speed estimate."""
+"""Hall edge times kept for the speed estimate (the C twin keeps as many: EDGE_HISTORY)."""
+
+_NATIVE_MODULE = "plant_emulators.fertilizer._ground_speed_native"
 
 
 class MachineDirection(enum.IntEnum):
@@ -156,6 +167,8 @@ class GroundSpeedModel:
         The ``[ground_speed]`` section.
     rng : numpy.random.Generator
         The run's generator; the model spawns its own child stream at construction.
+    engine : {"native", "python"}, optional
+        Which step loop runs (the same floats either way); None: ``AGRIHIL_PHYSICS``.
 
     Attributes
     ----------
@@ -163,20 +176,22 @@ class GroundSpeedModel:
         Input: the travel speed the scenario asks of the tractor (m/s, >= 0).
     """
 
-    def __init__(self, config: GroundSpeedConfig, rng: np.random.Generator) -> None:
+    def __init__(self, config: GroundSpeedConfig, rng: np.random.Generator, *,
+                 engine: str | None = None) -> None:
         self.config = config
+        self.engine: Engine = resolve_engine(engine)
         own = spawn(rng)
-        self._z = NormalStream(spawn(own))
+        z_rng = spawn(own)
         n_mag = config.pulses_per_rev
         self.pulse_spacing_errors: tuple[float, ...] = tuple(
             float(v) for v in config.pulse_spacing_error_sd_frac * own.standard_normal(n_mag))
         """Per-magnet edge position error (fraction of a pulse pitch), drawn per run."""
-        self._variation = config.speed_variation_sd_frac * float(own.standard_normal())
-        self._wheel_slip = config.wheel_slip_mean_frac + config.wheel_slip_sd_frac * float(
+        variation = config.speed_variation_sd_frac * float(own.standard_normal())
+        wheel_slip = config.wheel_slip_mean_frac + config.wheel_slip_sd_frac * float(
             own.standard_normal())
-        self._tractor_slip = (config.tractor_slip_mean_frac
-                              + config.tractor_slip_sd_frac * float(own.standard_normal()))
-        self._radar_noise = config.radar_noise_sd_frac * float(own.standard_normal())
+        tractor_slip = (config.tractor_slip_mean_frac
+                        + config.tractor_slip_sd_frac * float(own.standard_normal()))
+        radar_noise = config.radar_noise_sd_frac * float(own.standard_normal())
 
         # Vibration: AR(2) resonator at vibration_freq_hz, unit variance.
         h = _SLOW_UPDATE_S
@@ -187,13 +202,33 @@ class GroundSpeedModel:
         self._ar2 = -r * r
         var = (1.0 + r * r) / ((1.0 - r * r) * ((1.0 + r * r) ** 2 - 4.0 * r * r * c * c))
         self._ar_gain = 1.0 / math.sqrt(var)
-        self._vib = [0.0, 0.0]
         self._radar_gain = 1.0 + config.radar_bias_frac
         self._vib_rms_per_mps = config.vibration_rms_mps2_per_mps
 
         self.target_speed_mps = 0.0
         self._dt: float | None = None
         self._k: _StepConstants               # set when the step size is bound
+        self._core = None
+        if self.engine == "native":
+            native = load_native(_NATIVE_MODULE)
+            # The twin owns the state from here on (no Python copy of it to go stale). It
+            # draws its noise from the same generator in the same blocks as the Python loop's
+            # NormalStream, so the sequence is the same.
+            self._core = native.GroundSpeedCore(
+                self.pulse_spacing_errors, variation, wheel_slip, tractor_slip, radar_noise,
+                self._ar1, self._ar2, self._ar_gain, self._radar_gain, self._vib_rms_per_mps,
+                config.hall_timeout_s, config.hall_average_window_s,
+                config.reported_metres_per_pulse, HallReport,
+                partial(z_rng.standard_normal, native.NORMAL_BLOCK))
+            self._set_outputs(self._core.outputs())
+            return
+
+        self._z = NormalStream(z_rng)
+        self._variation = variation
+        self._wheel_slip = wheel_slip
+        self._tractor_slip = tractor_slip
+        self._radar_noise = radar_noise
+        self._vib = [0.0, 0.0]
         self._steps = 0
         self._countdown = 0
         self._v = 0.0
@@ -216,6 +251,8 @@ class GroundSpeedModel:
         if not 0.0 < dt <= _SLOW_UPDATE_S:
             raise ValueError(f"dt must be in (0, {_SLOW_UPDATE_S}] s, got {dt!r}")
         self._k = _StepConstants.for_step(self.config, dt)
+        if self._core is not None:
+            self._core.bind(dt, self._k)
         self._dt = dt
 
     def advance(self, n: int, dt: float) -> None:
@@ -225,6 +262,9 @@ class GroundSpeedModel:
         if dt != self._dt:          # first call (binds the step) or a changed step (raises)
             self._bind_dt(dt)
         target = max(0.0, float(self.target_speed_mps))
+        if self._core is not None:
+            self._set_outputs(self._core.advance(n, target))
+            return
         # One tuple unpacking instead of ~20 attribute lookups per call (order as declared).
         (slow, var_a, var_b, ws_a, ws_b, ts_a, ts_b, rn_a, rn_b, ws_mean, ts_mean,
          k_tau, dv_max, inv_pitch, radar_gain) = self._k
@@ -293,6 +333,9 @@ class GroundSpeedModel:
 
     # ------------------------------------------------------------------ outputs
     def _update_outputs(self) -> None:
+        if self._core is not None:
+            self._set_outputs(self._core.outputs())
+            return
         v = self._v
         self.time_s = self._steps * (self._dt or 0.0)
         self.true_speed_mps = v
@@ -310,8 +353,18 @@ class GroundSpeedModel:
         self.vibration_rms_mps2 = self._vib_rms_per_mps * v
         self.vibration_mps2 = self.vibration_rms_mps2 * self._vib[0]
 
+    def _set_outputs(self, outputs: tuple) -> None:
+        """The twin's outputs, in the order :meth:`_update_outputs` sets them."""
+        (self.time_s, self.true_speed_mps, self.true_distance_m, self.wheel_slip_frac,
+         self.tractor_slip_frac, self.ground_wheel_speed_mps, self.ground_wheel_distance_m,
+         self.hall_pulses, self.wheel_based_speed_mps, self.wheel_based_distance_m,
+         self.ground_based_speed_mps, self.ground_based_distance_m, self.vibration_rms_mps2,
+         self.vibration_mps2) = outputs
+
     def hall_report(self) -> HallReport:
         """What the Hall node would report now, from its recorded pulse edges."""
+        if self._core is not None:
+            return self._core.hall_report()       # the same computation, in the twin
         cfg = self.config
         now = self.time_s
         edges = self._edges
