@@ -28,6 +28,12 @@ Conversions and windows run on the module's own crystal (a few tens of ppm off t
 clock) and are resolved to the physics step; a 1 s window holds 90 or 91 conversions of
 11 ms, as the real firmware's would.
 
+The per-step loop (holdup, conversions, baseline, window sums) exists twice (see
+:mod:`plant_emulators.engine`): the Python loop below, the reference, and its C twin
+(``native/flow_sensor_core.c``), which runs the same operations in the same order and gives
+the same floats bit for bit. ``AGRIHIL_PHYSICS`` or the ``engine`` argument picks one. What
+runs once per window or less (reports, faults, the vibration noise level) is Python in both.
+
 Example
 -------
 >>> import numpy as np
@@ -48,11 +54,13 @@ import enum
 import math
 from bisect import bisect_left
 from collections import deque
+from functools import partial
 from itertools import accumulate, repeat
 from typing import Literal, NamedTuple
 
 import numpy as np
 
+from plant_emulators.engine import Engine, load_native, resolve_engine
 from plant_emulators.fertilizer.config import FlowSensorConfig
 from plant_emulators.fertilizer.noise import NormalStream, ou_coefficients, spawn
 
@@ -136,6 +144,14 @@ class SensorStatus(enum.IntFlag):
     """The calibration intercept b was added to the window."""
 
 
+_BASELINE_READY = SensorStatus.BASELINE_READY.value
+_SLIDING_WINDOW = SensorStatus.SLIDING_WINDOW.value
+_ADC_OVERRANGE = SensorStatus.ADC_OVERRANGE.value
+_INTERCEPT_APPLIED = SensorStatus.INTERCEPT_APPLIED.value
+_STATUS: tuple[SensorStatus, ...] = tuple(SensorStatus(bits) for bits in range(16))
+"""Every status, indexed by its bits."""
+
+
 class FlowReport(NamedTuple):
     """One report of a flow detection module."""
 
@@ -164,6 +180,8 @@ class FlowSensor:
         The run's generator; the module spawns its own child stream at construction.
     mode : {"block", "sliding"}, optional
         Overrides ``config.mode``.
+    engine : {"native", "python"}, optional
+        Which step loop runs (the same floats either way); None: ``AGRIHIL_PHYSICS``.
 
     Attributes
     ----------
@@ -180,13 +198,15 @@ class FlowSensor:
     """
 
     def __init__(self, config: FlowSensorConfig, rng: np.random.Generator, *,
-                 mode: Literal["block", "sliding"] | None = None) -> None:
+                 mode: Literal["block", "sliding"] | None = None,
+                 engine: str | None = None) -> None:
         self.config = config
         self.mode: Literal["block", "sliding"] = mode if mode is not None else config.mode
         if self.mode not in ("block", "sliding"):
             raise ValueError(f"mode must be 'block' or 'sliding', got {self.mode!r}")
+        self.engine: Engine = resolve_engine(engine)
         own = spawn(rng)
-        self._z = NormalStream(spawn(own))
+        z_rng = spawn(own)
         self._fault_rng = spawn(own)
         self.calibration_error_frac = config.calibration_mismatch_sd_frac * _accepted_normal(own)
         """This module's true sensitivity relative to what its calibration assumes."""
@@ -221,21 +241,35 @@ class FlowSensor:
 
         # State.
         self._dt: float | None = None
-        self._steps = 0
-        self._holdup_g = 0.0
-        self._inv_tau = 1.0 / (config.sensing_transit_s * (1.0 + self._jitter))
-        self._h_acc = 0.0         # Σ holdup over the steps of the running conversion
-        self._conv_start = 0      # step count at the start of the running conversion
-        self._t_conv = 0.0        # module clock since the last conversion (s)
-        # The end of the running block (or sliding sub-) window: step count at which it falls
-        # due and the module clock then (s); scheduled when dt is bound.
-        self._sub_at = 0
-        self._sub_clock = 0.0
-        self._baseline_acc = 0.0
-        self._baseline_n = 0
-        self._baseline_pf: float | None = None
-        self._sub_sum_pf = 0.0
-        self._sub_overrange = False
+        inv_tau = 1.0 / (config.sensing_transit_s * (1.0 + self._jitter))
+        self._core = None
+        if self.engine == "native":
+            # The twin owns the per-step state (holdup, conversion, baseline, window sums, the
+            # window ends; read through the properties) and draws its noise from the same
+            # generator in the same blocks as the Python loop's NormalStream.
+            native = load_native("plant_emulators.fertilizer._flow_sensor_native")
+            self._core = native.FlowSensorCore(
+                conv_s, self._jit_a, self._jit_b, self._drift_a, self._drift_b,
+                self._transit_s, self._sensitivity, self._range_pf, self._lsb_pf,
+                config.baseline_samples, self._jitter, self._drift_pf, inv_tau,
+                partial(z_rng.standard_normal, native.NORMAL_BLOCK))
+        else:
+            self._z = NormalStream(z_rng)
+            # The end of the running block (or sliding sub-) window: step count at which it
+            # falls due and the module clock then (s); scheduled when dt is bound.
+            self._sub_at = 0
+            self._sub_clock = 0.0
+            self._steps = 0
+            self._holdup_g = 0.0
+            self._inv_tau = inv_tau
+            self._h_acc = 0.0         # Σ holdup over the steps of the running conversion
+            self._conv_start = 0      # step count at the start of the running conversion
+            self._t_conv = 0.0        # module clock since the last conversion (s)
+            self._baseline_acc = 0.0
+            self._baseline_n = 0
+            self._baseline_pf: float | None = None
+            self._sub_sum_pf = 0.0
+            self._sub_overrange = False
         self._window: deque[tuple[float, bool]] = deque(maxlen=self._subs_per_window)
         self._counter = 0
         self._last: FlowReport | None = None
@@ -245,22 +279,26 @@ class FlowSensor:
     @property
     def time_s(self) -> float:
         """Rig time the module has been advanced to (s)."""
-        return self._steps * (self._dt or 0.0)
+        core = self._core
+        steps = self._steps if core is None else core.steps
+        return steps * (self._dt or 0.0)
 
     @property
     def baseline_ready(self) -> bool:
         """True once the empty-pipe capacitance has been acquired."""
-        return self._baseline_pf is not None
+        return self.baseline_pf is not None
 
     @property
     def baseline_pf(self) -> float | None:
         """The empty-pipe capacitance the module subtracts (pF), once acquired."""
-        return self._baseline_pf
+        core = self._core
+        return self._baseline_pf if core is None else core.baseline_pf
 
     @property
     def holdup_g(self) -> float:
         """Grams currently between the electrodes."""
-        return self._holdup_g
+        core = self._core
+        return self._holdup_g if core is None else core.holdup_g
 
     @property
     def report_period_s(self) -> float:
@@ -283,7 +321,8 @@ class FlowSensor:
         step size is bound by the first :meth:`advance`. No report can appear before then."""
         if self._dt is None:
             return None
-        return self._sub_at * self._dt
+        core = self._core
+        return (self._sub_at if core is None else core.sub_at) * self._dt
 
     # ------------------------------------------------------------------ stepping
     def _bind_dt(self, dt: float) -> None:
@@ -300,7 +339,10 @@ class FlowSensor:
         # A small tolerance so that 11 steps of 1 ms make an 11 ms conversion despite rounding.
         tol = dt * 1e-6
         self._conv_due, self._sub_due = self._conv_s - tol, self._sub_s - tol
-        self._sub_at, self._sub_clock = _crossing(0.0, self._step_rig, self._sub_due)
+        if self._core is None:
+            self._sub_at, self._sub_clock = _crossing(0.0, self._step_rig, self._sub_due)
+        else:                       # the twin schedules the window ends (the same _crossing)
+            self._core.bind(dt, self._step_rig, self._conv_due, self._sub_s, self._sub_due)
         self._dt = dt
 
     def advance(self, n: int, dt: float, flow_gps: float) -> None:
@@ -321,7 +363,6 @@ class FlowSensor:
             raise ValueError(f"n must be >= 0, got {n}")
         if dt != self._dt:          # first call (binds the step) or a changed step (raises)
             self._bind_dt(dt)
-        q = flow_gps if flow_gps > 0.0 else 0.0
         vibration = self.vibration_rms_mps2
         if vibration != self._noise_vib:
             # The vibration is an input held for the whole call: the noise level is
@@ -329,6 +370,17 @@ class FlowSensor:
             # computes, inlined: this runs on every call of a moving rig).
             self._noise_vib = vibration
             self._noise_pf = _hypot(self._adc_noise_pf, self._vib_pf_per_mps2 * vibration)
+        core = self._core
+        if core is not None:
+            # The twin runs the loop below (q included) up to the end of the call or of the
+            # window; at a window's end it schedules the next one (the _crossing below) and
+            # returns the steps left, and the window is closed here, as below.
+            rest = core.advance(n, flow_gps, self._noise_pf)
+            while rest is not None:
+                self._close_sub_window(core.steps * dt)
+                rest = core.advance(rest, flow_gps, self._noise_pf)
+            return
+        q = flow_gps if flow_gps > 0.0 else 0.0
         step, conv_due, conv_s = self._step_rig, self._conv_due, self._conv_s
         h, inv_tau = self._holdup_g, self._inv_tau
         h_acc, conv_start = self._h_acc, self._conv_start
@@ -407,23 +459,27 @@ class FlowSensor:
     def _close_sub_window(self, now_s: float) -> None:
         """End of a block window or of a sliding sub-window: produce a report."""
         cfg = self.config
-        status = SensorStatus(0)
-        if self.mode == "sliding":
-            status |= SensorStatus.SLIDING_WINDOW
+        # The status bits as a plain int, made a SensorStatus by one table look-up at the end:
+        # IntFlag arithmetic costs ~0.8 us an operation, more than the rest of this method.
+        status = _SLIDING_WINDOW if self.mode == "sliding" else 0
         grams = flow = 0.0
         span_rig_s = self._sub_s / (1.0 + self.clock_error_ppm * 1e-6)
-        if self._baseline_pf is not None:
-            self._window.append((self._sub_sum_pf, self._sub_overrange))
-            self._sub_sum_pf = 0.0
-            self._sub_overrange = False
-            status |= SensorStatus.BASELINE_READY
-            sum_pf = sum(s for s, _ in self._window)
-            if any(o for _, o in self._window):
-                status |= SensorStatus.ADC_OVERRANGE
+        if self.baseline_pf is not None:
+            core = self._core
+            if core is None:
+                self._window.append((self._sub_sum_pf, self._sub_overrange))
+                self._sub_sum_pf = 0.0
+                self._sub_overrange = False
+            else:
+                self._window.append(core.take_window())
+            status |= _BASELINE_READY
+            sum_pf = sum([s for s, _ in self._window])          # oldest first, as appended
+            if any([o for _, o in self._window]):
+                status |= _ADC_OVERRANGE
             grams = cfg.calibration_k_g_per_pf * sum_pf
             if cfg.intercept == "per_window":
                 grams += cfg.calibration_b_g
-                status |= SensorStatus.INTERCEPT_APPLIED
+                status |= _INTERCEPT_APPLIED
             span_s = len(self._window) * self._sub_s
             flow = grams / span_s
             span_rig_s = span_s / (1.0 + self.clock_error_ppm * 1e-6)
@@ -434,7 +490,7 @@ class FlowSensor:
                 lo = cfg.flow_valid_max_gps
                 grams = float(self._fault_rng.uniform(lo, _RAW_MAX))
                 flow = float(self._fault_rng.uniform(lo, _RAW_MAX))
-            report = FlowReport(now_s, grams, flow, self._counter, status, span_rig_s)
+            report = FlowReport(now_s, grams, flow, self._counter, _STATUS[status], span_rig_s)
             self._counter = (self._counter + 1) % _COUNTER_MODULO
             self._last = report
         self._pending.append(report)
@@ -448,7 +504,7 @@ class FlowSensor:
         """Internal state with units, for trace recording."""
         last = self._last
         return {
-            "holdup_g": (self._holdup_g, "g"),
+            "holdup_g": (self.holdup_g, "g"),
             "baseline_ready": (float(self.baseline_ready), "1"),
             "last_flow_gps": (last.flow_gps if last else 0.0, "g/s"),
             "last_grams_in_window": (last.grams_in_window if last else 0.0, "g"),

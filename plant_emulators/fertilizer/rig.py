@@ -142,7 +142,8 @@ class FertilizerRig(Rig):
         self.time_s += span
 
     def physics_engines(self) -> dict[str, str]:
-        return {"plant": self.plant.engine, "ground_speed": self.speed.engine}
+        return {"plant": self.plant.engine, "ground_speed": self.speed.engine,
+                "flow_sensors": self.sensors[0].engine}
 
     # --- scenario --------------------------------------------------------------------------
     def set_input(self, name: str, value: float, time_s: float) -> None:
