@@ -8,6 +8,8 @@ Run explicitly (the project's pytest options skip benchmarks by default)::
 ``advance(10)`` per 10 ms period, interleaved (ground speed, plant, four flow modules): the
 last benchmark replays that pattern, which is what a field run costs (it is slower per step
 than a model run alone: per-call overhead and the models evicting each other from the caches).
+Each benchmark runs on both physics engines (``plant_emulators.engine``): the C twins and the
+Python models, which give the same floats.
 """
 
 from __future__ import annotations
@@ -29,25 +31,31 @@ RIG_STEPS_PER_S = 50_000
 """Requirement for all models together in the rig's pattern (60 s of physics in 1.2 s)."""
 
 
+@pytest.fixture(params=["native", "python"])
+def engine(request: pytest.FixtureRequest) -> str:
+    return str(request.param)
+
+
 @pytest.fixture
-def running_plant() -> FertilizerPlant:
-    plant = FertilizerPlant(load_rig_config(), np.random.default_rng(1))
+def running_plant(engine: str) -> FertilizerPlant:
+    plant = FertilizerPlant(load_rig_config(), np.random.default_rng(1), engine=engine)
     plant.command_v = 3.5                 # 21 r/min, 4 rows delivering and pulsing
     plant.advance(2000, DT)
     return plant
 
 
 @pytest.fixture
-def running_sensor() -> FlowSensor:
-    sensor = FlowSensor(load_rig_config().flow_sensor, np.random.default_rng(2))
+def running_sensor(engine: str) -> FlowSensor:
+    sensor = FlowSensor(load_rig_config().flow_sensor, np.random.default_rng(2), engine=engine)
     sensor.advance(3000, DT, 0.0)          # baseline acquired
     sensor.vibration_rms_mps2 = 2.5        # field: 6 km/h
     return sensor
 
 
 @pytest.fixture
-def running_ground() -> GroundSpeedModel:
-    ground = GroundSpeedModel(load_rig_config().ground_speed, np.random.default_rng(3))
+def running_ground(engine: str) -> GroundSpeedModel:
+    ground = GroundSpeedModel(load_rig_config().ground_speed, np.random.default_rng(3),
+                              engine=engine)
     ground.target_speed_mps = 6 / 3.6
     ground.advance(5000, DT)
     return ground
@@ -96,13 +104,13 @@ def test_ground_speed_steps_per_second(benchmark, running_ground):
     assert _report(benchmark, 1000) >= 4 * TARGET_STEPS_PER_S
 
 
-def test_rig_call_pattern(benchmark):
+def test_rig_call_pattern(benchmark, engine: str):
     """Every model as the rig drives it: ground speed, plant, four modules, 10 steps a call."""
     cfg = load_rig_config()
     rng = np.random.default_rng(6)
-    plant = FertilizerPlant(cfg, rng)
-    sensors = [FlowSensor(cfg.flow_sensor, rng) for _ in range(cfg.meter.rows)]
-    ground = GroundSpeedModel(cfg.ground_speed, rng)
+    plant = FertilizerPlant(cfg, rng, engine=engine)
+    sensors = [FlowSensor(cfg.flow_sensor, rng, engine=engine) for _ in range(cfg.meter.rows)]
+    ground = GroundSpeedModel(cfg.ground_speed, rng, engine=engine)
     ground.target_speed_mps = 6 / 3.6
     plant.command_v = 2.4                  # ~14 r/min: 25 g/s per row
     state = {"before": list(plant.sensor_passed_g)}
