@@ -334,7 +334,8 @@ class FertilizerPlant:
         tr = self.config.transport
         to_sensor = max(1, round(tr.meter_to_sensor_delay_s / dt))
         to_exit = max(1, round(tr.sensor_to_exit_delay_s / dt))
-        self._lines = [[0.0] * (to_sensor + to_exit) for _ in range(self._rows)]
+        if self._core is None:
+            self._lines = [[0.0] * (to_sensor + to_exit) for _ in range(self._rows)]
         self._line_base = 0
         self._to_exit = to_exit
         self._to_sensor = to_sensor
@@ -343,7 +344,6 @@ class FertilizerPlant:
         tau_d = tr.dispersion_time_s
         self._alpha = 1.0 - math.exp(-dt / tau_d) if tau_d > 0.0 else 1.0
         if self._core is not None:
-            self._lines = []
             self._core.bind(dt, self._drive, self._meter, self._alpha, to_sensor, to_exit)
         self._dt = dt
 
@@ -411,7 +411,7 @@ class FertilizerPlant:
         w_target = v_cmd * self._w_per_v if v_cmd > motor.command_deadband_v else 0.0
         stalled = bool(self.stalled)
         if self._core is not None:
-            self._core.advance(n, w_target, stalled)
+            self._core.advance(n, w_target, stalled, 1.0 + self.density_offset_frac)
             self._steps += n
             self._update_outputs()
             return

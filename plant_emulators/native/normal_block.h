@@ -25,9 +25,14 @@ typedef struct {
     int failed;          /* set when a refill failed: the caller must stop and report */
 } NormalBlock;
 
-/* The next variate. On a failed refill it sets `failed` and returns 0.0. */
+/* The next variate. On a failed refill it sets `failed` and returns 0.0; once failed, it
+ * never asks the source again (the caller's step stopped half done: its state is not one the
+ * Python model could be in, so the model is unusable from then on). */
 static inline double nb_next(NormalBlock *b)
 {
+    if (b->failed) {
+        return 0.0;
+    }
     if (b->pos >= b->size) {
         if (b->refill(b->ctx, b->values, b->size) != 0) {
             b->failed = 1;

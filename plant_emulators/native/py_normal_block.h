@@ -39,6 +39,20 @@ static int pynb_refill(void *ctx, double *block, size_t n)
     return ok ? 0 : -1;
 }
 
+/* -1 with a RuntimeError when an earlier refill failed (the model stopped mid-step and
+ * cannot go on), else 0. Call it before stepping. */
+static int pynb_check_usable(const NormalBlock *b)
+{
+    if (b->failed) {
+        PyErr_SetString(PyExc_RuntimeError,
+                        "an earlier draw of noise failed in the middle of a step (see the "
+                        "error raised then); this model's state is inconsistent: build a new "
+                        "one");
+        return -1;
+    }
+    return 0;
+}
+
 /* Point `b` at `storage` (size doubles), empty, refilled by `draw`. */
 static void pynb_init(NormalBlock *b, double *storage, size_t size, PyObject *draw)
 {

@@ -134,7 +134,9 @@ static int convert(FlowSensorCore *fs, double holdup_g, double noise_pf, double 
     if (isinf(units)) {
         return FS_ROUND_INF;
     }
-    c = nearbyint(units) * lsb;
+    /* + 0.0: round() of a value in (-0.5, 0] is the int 0, which converts to +0.0; nearbyint
+     * gives -0.0 there */
+    c = (nearbyint(units) + 0.0) * lsb;
     if (!fs->baseline_ready) {
         /* FlowSensor._acquire_baseline(c):
          *     self._baseline_acc += c

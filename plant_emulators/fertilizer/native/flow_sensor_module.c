@@ -151,6 +151,9 @@ static PyObject *fs_obj_advance(FlowSensorCoreObject *self, PyObject *const *arg
         PyErr_Format(PyExc_OverflowError, "n = %lld steps past step %lld", n, self->fs.steps);
         return NULL;
     }
+    if (pynb_check_usable(&self->z) != 0) {
+        return NULL;
+    }
     long long rest;
     switch (fs_advance(&self->fs, n, flow_gps, noise_pf, &rest)) {
     case FS_OK:

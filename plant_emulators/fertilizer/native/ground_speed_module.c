@@ -220,6 +220,13 @@ static PyObject *core_advance(GroundSpeedCoreObject *self, PyObject *const *args
         PyErr_Format(PyExc_ValueError, "n must be >= 0, got %lld", n);
         return NULL;
     }
+    if (n > LLONG_MAX - self->gs.steps) {
+        PyErr_Format(PyExc_OverflowError, "n = %lld steps past step %lld", n, self->gs.steps);
+        return NULL;
+    }
+    if (pynb_check_usable(&self->z) != 0) {
+        return NULL;
+    }
     if (check_rc(gs_advance(&self->gs, n, target)) != 0) {
         return NULL;
     }

@@ -3,7 +3,9 @@
  * not). */
 #include "plant_core.h"
 
+#include <limits.h>
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -103,6 +105,7 @@ int pc_init(PlantCore *pc, int rows, double charge_sd, double dens_base, const d
     for (int r = 0; r < rows; ++r) {
         pc->charge[r] = draw_charge(pc);
         if (z->failed) {
+            pc_free(pc);
             return -1;
         }
     }
@@ -115,6 +118,10 @@ int pc_init(PlantCore *pc, int rows, double charge_sd, double dens_base, const d
 int pc_bind(PlantCore *pc, double dt, const PcDrive *drive, const PcMeter *meter,
             double alpha, long to_sensor, long to_exit)
 {
+    if (to_sensor < 1 || to_exit < 1 || to_exit > LONG_MAX - to_sensor
+        || (size_t)(to_sensor + to_exit) > SIZE_MAX / sizeof(double) / (size_t)pc->rows) {
+        return -1;
+    }
     pc->line_len = to_sensor + to_exit;
     pc->lines = zalloc((size_t)pc->rows * (size_t)pc->line_len, sizeof(double));
     if (pc->lines == NULL) {
@@ -131,8 +138,9 @@ int pc_bind(PlantCore *pc, double dt, const PcDrive *drive, const PcMeter *meter
     return 0;
 }
 
-int pc_advance(PlantCore *pc, long n, double w_target, int stalled)
+int pc_advance(PlantCore *pc, long n, double w_target, int stalled, double dens_base_now)
 {
+    pc->dens_base = dens_base_now;
     const PcDrive d = pc->d;
     const PcMeter m = pc->m;
     const double dt = pc->dt;

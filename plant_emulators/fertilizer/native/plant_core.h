@@ -67,13 +67,15 @@ int pc_init(PlantCore *pc, int rows, double charge_sd, double dens_base, const d
             const double *offsets, const double *cos_off, const double *sin_off,
             double hopper_g, double density_wander, NormalBlock *z);
 
-/* Bind the step size: constants and delay lengths; allocates the delay lines. 0 or -1. */
+/* Bind the step size: constants and delay lengths (each >= 1 step); allocates the delay
+ * lines. 0, or -1 when a delay is < 1, the lines' size overflows or memory runs out. */
 int pc_bind(PlantCore *pc, double dt, const PcDrive *drive, const PcMeter *meter,
             double alpha, long to_sensor, long to_exit);
 
-/* n steps with the inputs held (w_target: speed reference target, rad/s). 0, or -1 when a
+/* n steps with the inputs held (w_target: speed reference target, rad/s; dens_base:
+ * 1 + the density offset, read per call as the Python loop does). 0, or -1 when a
  * normal-variate refill failed (z->failed; the state is then mid-step). */
-int pc_advance(PlantCore *pc, long n, double w_target, int stalled);
+int pc_advance(PlantCore *pc, long n, double w_target, int stalled, double dens_base);
 
 void pc_free(PlantCore *pc);
 

@@ -94,7 +94,7 @@ static int core_init(PlantCoreObject *self, PyObject *args, PyObject *kwds)
         && doubles(cos_off, "cos_off", rows, buf + 2 * rows) == 0
         && doubles(sin_off, "sin_off", rows, buf + 3 * rows) == 0) {
         Py_INCREF(draw);
-        self->draw = draw;
+        Py_XSETREF(self->draw, draw);
         pynb_init(&self->z, self->z_storage, NORMAL_BLOCK, draw);
         if (pc_init(&self->pc, rows, charge_sd, dens_base, buf, buf + rows, buf + 2 * rows,
                     buf + 3 * rows, hopper_g, wander, &self->z) == 0) {
@@ -164,16 +164,17 @@ static PyObject *core_bind(PlantCoreObject *self, PyObject *args)
         return NULL;
     }
     if (pc_bind(&self->pc, dt, &d, &m, alpha, to_sensor, to_exit) != 0) {
-        return PyErr_NoMemory();
+        return PyErr_Format(PyExc_MemoryError, "no room for delay lines of %ld + %ld steps x "
+                            "%d rows", to_sensor, to_exit, self->pc.rows);
     }
     Py_RETURN_NONE;
 }
 
 static PyObject *core_advance(PlantCoreObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (nargs != 3) {
-        PyErr_Format(PyExc_TypeError, "advance(n, w_target, stalled): 3 arguments, got %zd",
-                     nargs);
+    if (nargs != 4) {
+        PyErr_Format(PyExc_TypeError,
+                     "advance(n, w_target, stalled, dens_base): 4 arguments, got %zd", nargs);
         return NULL;
     }
     if (check_ready(self, 1) != 0) {
@@ -191,11 +192,18 @@ static PyObject *core_advance(PlantCoreObject *self, PyObject *const *args, Py_s
     if (stalled < 0) {
         return NULL;
     }
+    double dens_base = PyFloat_AsDouble(args[3]);
+    if (dens_base == -1.0 && PyErr_Occurred()) {
+        return NULL;
+    }
     if (n < 0) {
         PyErr_Format(PyExc_ValueError, "n must be >= 0, got %ld", n);
         return NULL;
     }
-    if (pc_advance(&self->pc, n, w_target, stalled) != 0) {
+    if (pynb_check_usable(&self->z) != 0) {
+        return NULL;
+    }
+    if (pc_advance(&self->pc, n, w_target, stalled, dens_base) != 0) {
         if (!PyErr_Occurred()) {
             PyErr_SetString(PyExc_RuntimeError, "the normal-variate source failed");
         }
@@ -263,7 +271,7 @@ static PyMethodDef core_methods[] = {
     {"bind", (PyCFunction)core_bind, METH_VARARGS,
      "bind(dt, drive_constants, meter_constants, alpha, to_sensor, to_exit): the step size"},
     {"advance", (PyCFunction)(void (*)(void))core_advance, METH_FASTCALL,
-     "advance(n, w_target, stalled): n steps with the inputs held"},
+     "advance(n, w_target, stalled, dens_base): n steps with the inputs held"},
     {"state", (PyCFunction)core_state, METH_NOARGS,
      "(w, w_ref, xi, current, i2t, derated, rev, hopper_g, density_wander)"},
     {"rows_out", (PyCFunction)core_rows_out, METH_NOARGS,

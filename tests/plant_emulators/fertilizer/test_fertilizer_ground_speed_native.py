@@ -82,7 +82,8 @@ def _assert_same(cfg: GroundSpeedConfig, seed: int, script: list[tuple[int, floa
     twin = _run("native", cfg, seed, script, dt)
     assert len(python) == len(twin)
     for i, (a, b) in enumerate(zip(python, twin, strict=True)):
-        assert a == b, f"call {i}: the engines differ"
+        # repr: exact for floats, and it tells -0.0 from 0.0 and True from 1 (== does not)
+        assert repr(a) == repr(b), f"call {i}: the engines differ"
     return python
 
 
@@ -257,3 +258,24 @@ def test_a_broken_noise_source_is_reported(config) -> None:
     core.bind(DT, model._k)
     with pytest.raises(ValueError, match="1024 C doubles"):
         core.advance(1, 1.0)
+
+
+def test_a_failed_noise_source_stops_the_twin_for_good(config) -> None:
+    model = GroundSpeedModel(config, np.random.default_rng(0), engine="python")
+    model._bind_dt(DT)
+    core = native.GroundSpeedCore(model.pulse_spacing_errors, 0.0, 0.04, 0.08, 0.0, 0.0, 0.0,
+                                  1.0, 1.0, 1.5, 1.0, 0.25, 0.05, HallReport,
+                                  lambda: np.zeros(3))
+    core.bind(DT, model._k)
+    with pytest.raises(ValueError, match="1024 C doubles"):
+        core.advance(1, 1.0)
+    with pytest.raises(RuntimeError, match="earlier draw of noise failed"):
+        core.advance(1, 1.0)
+
+
+def test_the_step_count_cannot_overflow(config) -> None:
+    model = GroundSpeedModel(config, np.random.default_rng(0), engine="native")
+    model.advance(1, DT)
+    with pytest.raises(OverflowError):
+        model.advance(2**63 - 1, DT)
+    assert model.time_s == DT

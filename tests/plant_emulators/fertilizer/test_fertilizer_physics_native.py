@@ -48,15 +48,15 @@ def _observe(p: FertilizerPlant) -> tuple[object, ...]:
             tuple(p.signals().items()))
 
 
-def _run(engine: str, cfg: FertilizerRigConfig, seed: int, script: list[tuple[int, float, bool]]
-         ) -> list[tuple[object, ...]]:
+def _run(engine: str, cfg: FertilizerRigConfig, seed: int, script: list[tuple[int, float, bool]],
+         dt: float = DT) -> list[tuple[object, ...]]:
     plant = FertilizerPlant(cfg, np.random.default_rng(seed), engine=engine)
     assert plant.engine == engine
     seen = [_observe(plant)]
     for n, command, stalled in script:
         plant.command_v = command
         plant.stalled = stalled
-        plant.advance(n, DT)
+        plant.advance(n, dt)
         seen.append(_observe(plant))
     return seen
 
@@ -76,13 +76,15 @@ def _script(seed: int, calls: int, *, max_n: int = 40, stall_every: int = 0
     return out
 
 
-def _assert_same(cfg: FertilizerRigConfig, seed: int, script: list[tuple[int, float, bool]]
-                 ) -> None:
-    python = _run("python", cfg, seed, script)
-    native = _run("native", cfg, seed, script)
+def _assert_same(cfg: FertilizerRigConfig, seed: int, script: list[tuple[int, float, bool]],
+                 dt: float = DT) -> None:
+    """Same observations, compared by ``repr``: exact for floats (it round-trips), and it
+    tells -0.0 from 0.0 and True from 1, which ``==`` does not."""
+    python = _run("python", cfg, seed, script, dt)
+    native = _run("native", cfg, seed, script, dt)
     assert len(python) == len(native)
     for i, (a, b) in enumerate(zip(python, native, strict=True)):
-        assert a == b, f"call {i}: the engines differ"
+        assert repr(a) == repr(b), f"call {i}: the engines differ"
 
 
 @pytest.mark.parametrize("seed", [0, 1, 7, 1234])
@@ -110,6 +112,71 @@ def test_twin_matches_python_on_the_drive_limits() -> None:
     assert {3.0, -3.0, 2.0} <= currents, "both current limits and the derated limit"
     # on the voltage limit the terminal voltage is the supply, with a current below both limits
     assert any(abs(obs[5] - 12.0) < 1e-3 and 0.0 < obs[4] < 3.0 for obs in seen), "voltage limit"
+
+
+@pytest.mark.parametrize("dt", [0.0005, 0.002, 0.005])
+def test_twin_matches_python_at_other_steps_and_long_calls(dt: float) -> None:
+    """Other step sizes (other delay lengths and slow-update periods) and calls far longer
+    than the delay to the sensor (the Python transport then runs in several chunks)."""
+    _assert_same(_config(), 21, _script(21, 60, max_n=700), dt)
+
+
+def test_twin_matches_python_without_dispersion() -> None:
+    cfg = load_rig_config(overrides={"transport": {"dispersion_time_s": 0.0}})
+    _assert_same(cfg, 4, _script(4, 120, max_n=300))
+
+
+def test_twin_follows_a_density_offset_changed_mid_run() -> None:
+    """The Python loop reads density_offset_frac on every call; so does the twin."""
+    plants = {e: FertilizerPlant(_config(), np.random.default_rng(8), engine=e)
+              for e in ("python", "native")}
+    for plant in plants.values():
+        plant.command_v = 3.0
+        plant.advance(500, DT)
+        plant.density_offset_frac = -0.2
+        plant.advance(500, DT)
+    assert repr(_observe(plants["python"])) == repr(_observe(plants["native"]))
+
+
+def test_a_failed_noise_draw_stops_the_twin_for_good() -> None:
+    """The noise source raising mid-step (Ctrl-C inside numpy, say) raises that error; the
+    half-stepped twin then refuses to go on instead of stepping from a state the Python model
+    could never be in."""
+    from plant_emulators.fertilizer._plant_native import NORMAL_BLOCK, PlantCore
+
+    calls = {"n": 0}
+
+    def draw() -> np.ndarray:
+        calls["n"] += 1
+        if calls["n"] == 2:
+            raise KeyboardInterrupt
+        return np.zeros(NORMAL_BLOCK)
+
+    plant = FertilizerPlant(_config(), np.random.default_rng(0), engine="native")
+    core = PlantCore(4, 0.02, 1.0, (1.0,) * 4, (0.1, 0.2, 0.3, 0.4), (1.0,) * 4, (0.0,) * 4,
+                     50_000.0, 0.0, draw)
+    core.bind(DT, plant._drive_constants(DT), plant._meter_constants(DT), 0.5, 80, 400)
+    with pytest.raises(KeyboardInterrupt):
+        core.advance(20_000, 0.0, False, 1.0)        # ~2,000 slow updates: a second block
+    with pytest.raises(RuntimeError, match="earlier draw of noise failed"):
+        core.advance(1, 0.0, False, 1.0)
+    assert calls["n"] == 2, "the failed source is not asked again"
+    with pytest.raises(ValueError, match="must return 1024 C doubles"):
+        PlantCore(4, 0.02, 1.0, (1.0,) * 4, (0.1,) * 4, (1.0,) * 4, (0.0,) * 4, 1.0, 0.0,
+                  lambda: np.zeros(3))
+
+
+def test_twin_refuses_delay_lines_that_overflow() -> None:
+    from plant_emulators.fertilizer._plant_native import NORMAL_BLOCK, PlantCore
+
+    plant = FertilizerPlant(_config(), np.random.default_rng(0), engine="native")
+    core = PlantCore(4, 0.02, 1.0, (1.0,) * 4, (0.1,) * 4, (1.0,) * 4, (0.0,) * 4, 1.0, 0.0,
+                     lambda: np.zeros(NORMAL_BLOCK))
+    with pytest.raises(MemoryError, match="delay lines"):
+        core.bind(DT, plant._drive_constants(DT), plant._meter_constants(DT), 0.5,
+                  857988096451607168, 3753697921975781376)
+    with pytest.raises(ValueError, match="delays must be >= 1"):
+        core.bind(DT, plant._drive_constants(DT), plant._meter_constants(DT), 0.5, 0, 5)
 
 
 def test_twin_matches_python_through_starvation_and_an_empty_hopper() -> None:
