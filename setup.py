@@ -12,7 +12,7 @@ from setuptools import Extension, setup
 EXACT_FLOATS = ["-std=c11", "-O2", "-ffp-contract=off", "-fno-fast-math", "-fno-builtin-sin",
                 "-fno-builtin-cos", "-Wall", "-Wextra", "-Werror"]
 SHARED_HEADERS = ["plant_emulators/native/normal_block.h",
-                  "plant_emulators/native/py_normal_block.h"]
+                  "plant_emulators/native/py_normal_block.h", "plant_emulators/native/py_glue.h"]
 
 setup(ext_modules=[
     Extension("plant_emulators.fertilizer._plant_native",

@@ -41,7 +41,7 @@ static int pynb_refill(void *ctx, double *block, size_t n)
 
 /* -1 with a RuntimeError when an earlier refill failed (the model stopped mid-step and
  * cannot go on), else 0. Call it before stepping. */
-static int pynb_check_usable(const NormalBlock *b)
+static inline int pynb_check_usable(const NormalBlock *b)
 {
     if (b->failed) {
         PyErr_SetString(PyExc_RuntimeError,
@@ -54,7 +54,7 @@ static int pynb_check_usable(const NormalBlock *b)
 }
 
 /* Point `b` at `storage` (size doubles), empty, refilled by `draw`. */
-static void pynb_init(NormalBlock *b, double *storage, size_t size, PyObject *draw)
+static inline void pynb_init(NormalBlock *b, double *storage, size_t size, PyObject *draw)
 {
     b->values = storage;
     b->size = size;

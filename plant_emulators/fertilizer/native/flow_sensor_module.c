@@ -6,10 +6,9 @@
 #include <Python.h>
 #include <math.h>
 
-#include "../../native/py_normal_block.h"
+#include "../../native/py_glue.h"
 #include "flow_sensor_core.h"
 
-#define NORMAL_BLOCK 1024
 
 typedef struct {
     PyObject_HEAD
@@ -60,15 +59,7 @@ static void fs_obj_dealloc(FlowSensorCoreObject *self)
 
 static int check_ready(FlowSensorCoreObject *self, int need_bound)
 {
-    if (!self->ready) {
-        PyErr_SetString(PyExc_RuntimeError, "FlowSensorCore is not initialised");
-        return -1;
-    }
-    if (need_bound && !self->fs.bound) {
-        PyErr_SetString(PyExc_RuntimeError, "FlowSensorCore has no step size yet (bind first)");
-        return -1;
-    }
-    return 0;
+    return pyglue_check_ready(self->ready, self->fs.bound, need_bound, "FlowSensorCore");
 }
 
 /* The clock of fs_crossing must advance toward a finite threshold (else it would not end; the
@@ -131,8 +122,8 @@ static PyObject *fs_obj_advance(FlowSensorCoreObject *self, PyObject *const *arg
     if (check_ready(self, 1) != 0) {
         return NULL;
     }
-    long long n = PyLong_AsLongLong(args[0]);
-    if (n == -1 && PyErr_Occurred()) {
+    long long n;
+    if (pyglue_steps(args[0], self->fs.steps, &self->z, &n) != 0) {
         return NULL;
     }
     double flow_gps = PyFloat_AsDouble(args[1]);
@@ -141,17 +132,6 @@ static PyObject *fs_obj_advance(FlowSensorCoreObject *self, PyObject *const *arg
     }
     double noise_pf = PyFloat_AsDouble(args[2]);
     if (noise_pf == -1.0 && PyErr_Occurred()) {
-        return NULL;
-    }
-    if (n < 0) {
-        PyErr_Format(PyExc_ValueError, "n must be >= 0, got %lld", n);
-        return NULL;
-    }
-    if (n > LLONG_MAX - self->fs.steps) {
-        PyErr_Format(PyExc_OverflowError, "n = %lld steps past step %lld", n, self->fs.steps);
-        return NULL;
-    }
-    if (pynb_check_usable(&self->z) != 0) {
         return NULL;
     }
     long long rest;
@@ -302,22 +282,5 @@ static struct PyModuleDef flow_sensor_module = {
 
 PyMODINIT_FUNC PyInit__flow_sensor_native(void)
 {
-    if (PyType_Ready(&FlowSensorCoreType) < 0) {
-        return NULL;
-    }
-    PyObject *m = PyModule_Create(&flow_sensor_module);
-    if (m == NULL) {
-        return NULL;
-    }
-    Py_INCREF(&FlowSensorCoreType);
-    if (PyModule_AddObject(m, "FlowSensorCore", (PyObject *)&FlowSensorCoreType) < 0) {
-        Py_DECREF(&FlowSensorCoreType);
-        Py_DECREF(m);
-        return NULL;
-    }
-    if (PyModule_AddIntConstant(m, "NORMAL_BLOCK", NORMAL_BLOCK) < 0) {
-        Py_DECREF(m);
-        return NULL;
-    }
-    return m;
+    return pyglue_module(&flow_sensor_module, &FlowSensorCoreType, "FlowSensorCore");
 }

@@ -107,39 +107,25 @@ int gs_advance(GroundSpeedCore *gs, long long n, double target)
         /* if countdown <= 0: the slow processes, five draws in this order */
         if (countdown <= 0) {
             countdown = k.slow;
+            /* the five draws, in the order the statements below make them (a failed draw
+             * ends the call; the glue then refuses this twin: see normal_block.h) */
             double z1 = nb_next(z);
+            double z2 = nb_next(z);
+            double z3 = nb_next(z);
+            double z4 = nb_next(z);
+            double z5 = nb_next(z);
             if (z->failed) {
                 rc = GS_NOISE_FAILED;
                 break;
             }
             /* variation = var_a * variation + var_b * znext() */
             variation = k.var_a * variation + k.var_b * z1;
-            double z2 = nb_next(z);
-            if (z->failed) {
-                rc = GS_NOISE_FAILED;
-                break;
-            }
             /* wslip = ws_mean + ws_a * (wslip - ws_mean) + ws_b * znext() */
             wslip = k.ws_mean + k.ws_a * (wslip - k.ws_mean) + k.ws_b * z2;
-            double z3 = nb_next(z);
-            if (z->failed) {
-                rc = GS_NOISE_FAILED;
-                break;
-            }
             /* tslip = ts_mean + ts_a * (tslip - ts_mean) + ts_b * znext() */
             tslip = k.ts_mean + k.ts_a * (tslip - k.ts_mean) + k.ts_b * z3;
-            double z4 = nb_next(z);
-            if (z->failed) {
-                rc = GS_NOISE_FAILED;
-                break;
-            }
             /* rnoise = rn_a * rnoise + rn_b * znext() */
             rnoise = k.rn_a * rnoise + k.rn_b * z4;
-            double z5 = nb_next(z);
-            if (z->failed) {
-                rc = GS_NOISE_FAILED;
-                break;
-            }
             /* vib0, vib1 = ar1 * vib0 + ar2 * vib1 + znext() * ar_gain, vib0 */
             double vib_new = ar1 * vib0 + ar2 * vib1 + z5 * ar_gain;
             vib1 = vib0;

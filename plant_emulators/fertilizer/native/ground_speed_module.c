@@ -7,10 +7,9 @@
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
-#include "../../native/py_normal_block.h"
+#include "../../native/py_glue.h"
 #include "ground_speed_core.h"
 
-#define NORMAL_BLOCK 1024
 
 typedef struct {
     PyObject_HEAD
@@ -21,30 +20,6 @@ typedef struct {
     PyObject *report_type;   /* called with the four fields of a Hall report (HallReport) */
     int ready;
 } GroundSpeedCoreObject;
-
-/* `seq` as exactly n doubles into out; -1 with a Python error otherwise. */
-static int doubles(PyObject *seq, const char *name, Py_ssize_t n, double *out)
-{
-    PyObject *fast = PySequence_Fast(seq, name);
-    if (fast == NULL) {
-        return -1;
-    }
-    if (PySequence_Fast_GET_SIZE(fast) != n) {
-        PyErr_Format(PyExc_ValueError, "%s: expected %zd values, got %zd", name, n,
-                     PySequence_Fast_GET_SIZE(fast));
-        Py_DECREF(fast);
-        return -1;
-    }
-    for (Py_ssize_t i = 0; i < n; ++i) {
-        out[i] = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(fast, i));
-        if (out[i] == -1.0 && PyErr_Occurred()) {
-            Py_DECREF(fast);
-            return -1;
-        }
-    }
-    Py_DECREF(fast);
-    return 0;
-}
 
 /* 0 for GS_OK; otherwise -1 with the Python error the code stands for. */
 static int check_rc(int rc)
@@ -97,7 +72,7 @@ static int core_init(GroundSpeedCoreObject *self, PyObject *args, PyObject *kwds
         return -1;
     }
     int rc = -1;
-    if (doubles(errors, "errors", n_mag, buf) == 0) {
+    if (pyglue_doubles(errors, "errors", n_mag, buf) == 0) {
         pynb_init(&self->z, self->z_storage, NORMAL_BLOCK, draw);
         if (gs_init(&self->gs, (int)n_mag, buf, variation, wslip, tslip, rnoise, ar1, ar2,
                     ar_gain, radar_gain, vib_rms, timeout, window, mpp, &self->z) == 0) {
@@ -127,15 +102,7 @@ static void core_dealloc(GroundSpeedCoreObject *self)
 
 static int check_ready(GroundSpeedCoreObject *self, int need_bound)
 {
-    if (!self->ready) {
-        PyErr_SetString(PyExc_RuntimeError, "GroundSpeedCore is not initialised");
-        return -1;
-    }
-    if (need_bound && !self->gs.bound) {
-        PyErr_SetString(PyExc_RuntimeError, "GroundSpeedCore has no step size yet (bind first)");
-        return -1;
-    }
-    return 0;
+    return pyglue_check_ready(self->ready, self->gs.bound, need_bound, "GroundSpeedCore");
 }
 
 static PyObject *core_bind(GroundSpeedCoreObject *self, PyObject *args)
@@ -153,7 +120,7 @@ static PyObject *core_bind(GroundSpeedCoreObject *self, PyObject *args)
         return NULL;
     }
     double c[15];
-    if (doubles(constants, "step constants", 15, c) != 0) {
+    if (pyglue_doubles(constants, "step constants", 15, c) != 0) {
         return NULL;
     }
     GsStep k = {(long)c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9], c[10],
@@ -208,23 +175,12 @@ static PyObject *core_advance(GroundSpeedCoreObject *self, PyObject *const *args
     if (check_ready(self, 1) != 0) {
         return NULL;
     }
-    long long n = PyLong_AsLongLong(args[0]);
-    if (n == -1 && PyErr_Occurred()) {
+    long long n;
+    if (pyglue_steps(args[0], self->gs.steps, &self->z, &n) != 0) {
         return NULL;
     }
     double target = PyFloat_AsDouble(args[1]);
     if (target == -1.0 && PyErr_Occurred()) {
-        return NULL;
-    }
-    if (n < 0) {
-        PyErr_Format(PyExc_ValueError, "n must be >= 0, got %lld", n);
-        return NULL;
-    }
-    if (n > LLONG_MAX - self->gs.steps) {
-        PyErr_Format(PyExc_OverflowError, "n = %lld steps past step %lld", n, self->gs.steps);
-        return NULL;
-    }
-    if (pynb_check_usable(&self->z) != 0) {
         return NULL;
     }
     if (check_rc(gs_advance(&self->gs, n, target)) != 0) {
@@ -333,21 +289,8 @@ static struct PyModuleDef ground_speed_module = {
 
 PyMODINIT_FUNC PyInit__ground_speed_native(void)
 {
-    if (PyType_Ready(&GroundSpeedCoreType) < 0) {
-        return NULL;
-    }
-    PyObject *m = PyModule_Create(&ground_speed_module);
-    if (m == NULL) {
-        return NULL;
-    }
-    Py_INCREF(&GroundSpeedCoreType);
-    if (PyModule_AddObject(m, "GroundSpeedCore", (PyObject *)&GroundSpeedCoreType) < 0) {
-        Py_DECREF(&GroundSpeedCoreType);
-        Py_DECREF(m);
-        return NULL;
-    }
-    if (PyModule_AddIntConstant(m, "NORMAL_BLOCK", NORMAL_BLOCK) < 0
-        || PyModule_AddIntConstant(m, "EDGE_HISTORY", GS_EDGE_HISTORY) < 0) {
+    PyObject *m = pyglue_module(&ground_speed_module, &GroundSpeedCoreType, "GroundSpeedCore");
+    if (m != NULL && PyModule_AddIntConstant(m, "EDGE_HISTORY", GS_EDGE_HISTORY) < 0) {
         Py_DECREF(m);
         return NULL;
     }

@@ -138,7 +138,7 @@ int pc_bind(PlantCore *pc, double dt, const PcDrive *drive, const PcMeter *meter
     return 0;
 }
 
-int pc_advance(PlantCore *pc, long n, double w_target, int stalled, double dens_base_now)
+int pc_advance(PlantCore *pc, long long n, double w_target, int stalled, double dens_base_now)
 {
     pc->dens_base = dens_base_now;
     const PcDrive d = pc->d;
@@ -162,7 +162,7 @@ int pc_advance(PlantCore *pc, long n, double w_target, int stalled, double dens_
     long pos = pc->line_pos;
     double den = 0.0, dwf = 0.0;
 
-    for (long step = 0; step < n; ++step) {
+    for (long long step = 0; step < n; ++step) {
         /* ---- slow processes */
         if (countdown <= 0) {
             countdown = m.slow_steps;

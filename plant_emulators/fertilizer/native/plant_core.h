@@ -75,7 +75,7 @@ int pc_bind(PlantCore *pc, double dt, const PcDrive *drive, const PcMeter *meter
 /* n steps with the inputs held (w_target: speed reference target, rad/s; dens_base:
  * 1 + the density offset, read per call as the Python loop does). 0, or -1 when a
  * normal-variate refill failed (z->failed; the state is then mid-step). */
-int pc_advance(PlantCore *pc, long n, double w_target, int stalled, double dens_base);
+int pc_advance(PlantCore *pc, long long n, double w_target, int stalled, double dens_base);
 
 void pc_free(PlantCore *pc);
 

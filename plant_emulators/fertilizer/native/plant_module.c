@@ -5,10 +5,8 @@
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
-#include "../../native/py_normal_block.h"
+#include "../../native/py_glue.h"
 #include "plant_core.h"
-
-#define NORMAL_BLOCK 1024
 
 typedef struct {
     PyObject_HEAD
@@ -18,30 +16,6 @@ typedef struct {
     PyObject *draw;       /* the normal-variate source: draw() -> NORMAL_BLOCK doubles */
     int ready;
 } PlantCoreObject;
-
-/* `seq` as exactly n doubles into out; -1 with a Python error otherwise. */
-static int doubles(PyObject *seq, const char *name, Py_ssize_t n, double *out)
-{
-    PyObject *fast = PySequence_Fast(seq, name);
-    if (fast == NULL) {
-        return -1;
-    }
-    if (PySequence_Fast_GET_SIZE(fast) != n) {
-        PyErr_Format(PyExc_ValueError, "%s: expected %zd values, got %zd", name, n,
-                     PySequence_Fast_GET_SIZE(fast));
-        Py_DECREF(fast);
-        return -1;
-    }
-    for (Py_ssize_t i = 0; i < n; ++i) {
-        out[i] = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(fast, i));
-        if (out[i] == -1.0 && PyErr_Occurred()) {
-            Py_DECREF(fast);
-            return -1;
-        }
-    }
-    Py_DECREF(fast);
-    return 0;
-}
 
 static PyObject *tuple_of(const double *values, int n, double scale)
 {
@@ -90,9 +64,10 @@ static int core_init(PlantCoreObject *self, PyObject *args, PyObject *kwds)
         return -1;
     }
     int rc = -1;
-    if (doubles(gain, "gain", rows, buf) == 0 && doubles(offsets, "offsets", rows, buf + rows) == 0
-        && doubles(cos_off, "cos_off", rows, buf + 2 * rows) == 0
-        && doubles(sin_off, "sin_off", rows, buf + 3 * rows) == 0) {
+    if (pyglue_doubles(gain, "gain", rows, buf) == 0
+        && pyglue_doubles(offsets, "offsets", rows, buf + rows) == 0
+        && pyglue_doubles(cos_off, "cos_off", rows, buf + 2 * rows) == 0
+        && pyglue_doubles(sin_off, "sin_off", rows, buf + 3 * rows) == 0) {
         Py_INCREF(draw);
         Py_XSETREF(self->draw, draw);
         pynb_init(&self->z, self->z_storage, NORMAL_BLOCK, draw);
@@ -119,15 +94,7 @@ static void core_dealloc(PlantCoreObject *self)
 
 static int check_ready(PlantCoreObject *self, int need_bound)
 {
-    if (!self->ready) {
-        PyErr_SetString(PyExc_RuntimeError, "PlantCore is not initialised");
-        return -1;
-    }
-    if (need_bound && !self->pc.bound) {
-        PyErr_SetString(PyExc_RuntimeError, "PlantCore has no step size yet (bind first)");
-        return -1;
-    }
-    return 0;
+    return pyglue_check_ready(self->ready, self->pc.bound, need_bound, "PlantCore");
 }
 
 static PyObject *core_bind(PlantCoreObject *self, PyObject *args)
@@ -151,8 +118,8 @@ static PyObject *core_bind(PlantCoreObject *self, PyObject *args)
         return NULL;
     }
     double dv[19], mv[18];
-    if (doubles(drive, "drive constants", 19, dv) != 0
-        || doubles(meter, "meter constants", 18, mv) != 0) {
+    if (pyglue_doubles(drive, "drive constants", 19, dv) != 0
+        || pyglue_doubles(meter, "meter constants", 18, mv) != 0) {
         return NULL;
     }
     PcDrive d = {dv[0], dv[1], dv[2], dv[3], dv[4], dv[5], dv[6], dv[7], dv[8], dv[9],
@@ -180,8 +147,8 @@ static PyObject *core_advance(PlantCoreObject *self, PyObject *const *args, Py_s
     if (check_ready(self, 1) != 0) {
         return NULL;
     }
-    long n = PyLong_AsLong(args[0]);
-    if (n == -1 && PyErr_Occurred()) {
+    long long n;            /* the plant keeps no step count: nothing to overflow */
+    if (pyglue_steps(args[0], 0, &self->z, &n) != 0) {
         return NULL;
     }
     double w_target = PyFloat_AsDouble(args[1]);
@@ -194,13 +161,6 @@ static PyObject *core_advance(PlantCoreObject *self, PyObject *const *args, Py_s
     }
     double dens_base = PyFloat_AsDouble(args[3]);
     if (dens_base == -1.0 && PyErr_Occurred()) {
-        return NULL;
-    }
-    if (n < 0) {
-        PyErr_Format(PyExc_ValueError, "n must be >= 0, got %ld", n);
-        return NULL;
-    }
-    if (pynb_check_usable(&self->z) != 0) {
         return NULL;
     }
     if (pc_advance(&self->pc, n, w_target, stalled, dens_base) != 0) {
@@ -302,22 +262,5 @@ static struct PyModuleDef plant_module = {
 
 PyMODINIT_FUNC PyInit__plant_native(void)
 {
-    if (PyType_Ready(&PlantCoreType) < 0) {
-        return NULL;
-    }
-    PyObject *m = PyModule_Create(&plant_module);
-    if (m == NULL) {
-        return NULL;
-    }
-    Py_INCREF(&PlantCoreType);
-    if (PyModule_AddObject(m, "PlantCore", (PyObject *)&PlantCoreType) < 0) {
-        Py_DECREF(&PlantCoreType);
-        Py_DECREF(m);
-        return NULL;
-    }
-    if (PyModule_AddIntConstant(m, "NORMAL_BLOCK", NORMAL_BLOCK) < 0) {
-        Py_DECREF(m);
-        return NULL;
-    }
-    return m;
+    return pyglue_module(&plant_module, &PlantCoreType, "PlantCore");
 }

@@ -249,18 +249,7 @@ def test_twin_raises_where_the_python_model_divides_by_zero(config) -> None:
         core.advance(1, 0.0)
 
 
-def test_a_broken_noise_source_is_reported(config) -> None:
-    model = GroundSpeedModel(config, np.random.default_rng(0), engine="python")
-    model._bind_dt(DT)
-    core = native.GroundSpeedCore(model.pulse_spacing_errors, 0.0, 0.04, 0.08, 0.0, 0.0, 0.0,
-                                  1.0, 1.0, 1.5, 1.0, 0.25, 0.05, HallReport,
-                                  lambda: np.zeros(3))
-    core.bind(DT, model._k)
-    with pytest.raises(ValueError, match="1024 C doubles"):
-        core.advance(1, 1.0)
-
-
-def test_a_failed_noise_source_stops_the_twin_for_good(config) -> None:
+def test_a_broken_noise_source_is_reported_and_stops_the_twin(config) -> None:
     model = GroundSpeedModel(config, np.random.default_rng(0), engine="python")
     model._bind_dt(DT)
     core = native.GroundSpeedCore(model.pulse_spacing_errors, 0.0, 0.04, 0.08, 0.0, 0.0, 0.0,
