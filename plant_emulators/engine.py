@@ -36,6 +36,15 @@ Engine = Literal["native", "python"]
 ENGINES: tuple[Engine, ...] = ("native", "python")
 
 
+def _as_engine(value: str) -> Engine | None:
+    """``value`` as an :data:`Engine`, or None when it names none."""
+    if value == "native":
+        return "native"
+    if value == "python":
+        return "python"
+    return None
+
+
 def physics_engine(environ: Mapping[str, str] | None = None) -> Engine:
     """The engine ``AGRIHIL_PHYSICS`` selects (``native`` when it is unset).
 
@@ -46,10 +55,9 @@ def physics_engine(environ: Mapping[str, str] | None = None) -> Engine:
     """
     env = os.environ if environ is None else environ
     value = env.get(ENV_VAR, "native").strip().lower()
-    if value == "native":
-        return "native"
-    if value == "python":
-        return "python"
+    checked = _as_engine(value)
+    if checked is not None:
+        return checked
     raise ConfigError(f"{ENV_VAR}={value!r}: expected one of {', '.join(ENGINES)}",
                       key=ENV_VAR)
 
@@ -58,10 +66,9 @@ def resolve_engine(engine: str | None) -> Engine:
     """``engine`` checked, or the process's choice (:func:`physics_engine`) when None."""
     if engine is None:
         return physics_engine()
-    if engine == "native":
-        return "native"
-    if engine == "python":
-        return "python"
+    checked = _as_engine(engine)
+    if checked is not None:
+        return checked
     raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
 
 

@@ -250,7 +250,6 @@ class FertilizerPlant:
                 self.row_gain, flute_offsets, cos_off, sin_off,
                 fert.hopper_initial_kg * 1000.0, self._density_wander,
                 partial(z_rng.standard_normal, native.NORMAL_BLOCK))
-            self._charge = list(self._core.charges())
         else:
             self._z = NormalStream(z_rng)
             self._charge = [self._draw_charge() for _ in range(rows)]
@@ -278,18 +277,19 @@ class FertilizerPlant:
         self._i2t_budget = ((motor.current_limit_a ** 2 - motor.continuous_current_a ** 2)
                             * motor.peak_current_time_s)
 
-        # Meter constants.
-        self._flute_offsets = flute_offsets
-        self._cos_off = cos_off
-        self._sin_off = sin_off
-        self._flute_index = [int(f) for f in flute_offsets]
-        # Per-row values the inner loop reads, packed so that one tuple unpacking replaces
-        # four list subscripts per row and step; rebuilt when a row's flute charge changes.
-        self._row_params = [(g, ch, co, so) for g, ch, co, so in zip(
-            self.row_gain, self._charge, self._cos_off, self._sin_off, strict=True)]
-        self._flute_lo, self._flute_hi = _flute_window(flute_offsets, self._flute_index)
-        self._q_map = 0.0          # flow map value at ``_n_map`` (cache of the power law)
-        self._n_map = 0.0
+        # Meter state of the Python loop (the twin keeps its own, charges included).
+        if self._core is None:
+            self._flute_offsets = flute_offsets
+            self._cos_off = cos_off
+            self._sin_off = sin_off
+            self._flute_index = [int(f) for f in flute_offsets]
+            # Per-row values the inner loop reads, packed so that one tuple unpacking replaces
+            # four list subscripts per row and step; rebuilt when a row's flute charge changes.
+            self._row_params = [(g, ch, co, so) for g, ch, co, so in zip(
+                self.row_gain, self._charge, self._cos_off, self._sin_off, strict=True)]
+            self._flute_lo, self._flute_hi = _flute_window(flute_offsets, self._flute_index)
+            self._q_map = 0.0      # flow map value at ``_n_map`` (cache of the power law)
+            self._n_map = 0.0
 
         # State.
         self._w = 0.0              # motor speed (rad/s)

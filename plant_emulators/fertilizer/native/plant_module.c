@@ -219,14 +219,6 @@ static PyObject *core_metered(PlantCoreObject *self, PyObject *Py_UNUSED(ignored
     return tuple_of(self->pc.metered, self->pc.rows, self->pc.bound ? self->pc.dt : 0.0);
 }
 
-static PyObject *core_charges(PlantCoreObject *self, PyObject *Py_UNUSED(ignored))
-{
-    if (check_ready(self, 0) != 0) {
-        return NULL;
-    }
-    return tuple_of(self->pc.charge, self->pc.rows, 1.0);
-}
-
 static PyMethodDef core_methods[] = {
     {"bind", (PyCFunction)core_bind, METH_VARARGS,
      "bind(dt, drive_constants, meter_constants, alpha, to_sensor, to_exit): the step size"},
@@ -237,7 +229,6 @@ static PyMethodDef core_methods[] = {
     {"rows_out", (PyCFunction)core_rows_out, METH_NOARGS,
      "(sensor_passed_g, delivered_g, flow_at_meter_gps, flow_at_sensor_gps), per row"},
     {"metered", (PyCFunction)core_metered, METH_NOARGS, "grams that left each roller"},
-    {"charges", (PyCFunction)core_charges, METH_NOARGS, "each row's current flute charge"},
     {NULL, NULL, 0, NULL},
 };
 
