@@ -1,15 +1,26 @@
-"""Reproducibility: advance(n) equals n x advance(1) bit for bit, seeds fix every run."""
+"""Reproducibility: advance(n) equals n x advance(1) bit for bit, seeds fix every run.
+
+Every test runs on both physics engines (``plant_emulators.engine``): the runner relies on
+these properties whichever engine runs the models."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from plant_emulators.engine import ENV_VAR
 from plant_emulators.fertilizer.flow_sensor import FlowSensor
 from plant_emulators.fertilizer.ground_speed import GroundSpeedModel
 from plant_emulators.fertilizer.physics import FertilizerPlant
 
 DT = 0.001
+
+
+@pytest.fixture(autouse=True, params=["native", "python"])
+def engine(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> str:
+    """The engine every model of the test is built with (through AGRIHIL_PHYSICS)."""
+    monkeypatch.setenv(ENV_VAR, request.param)
+    return str(request.param)
 
 # (steps, command V, stalled) segments that visit ramps, steady running, a stall and a stop.
 PLANT_SCRIPT = [(700, 2.0, False), (1300, 5.3, False), (400, 5.3, True), (900, 7.0, False),
@@ -38,6 +49,7 @@ def test_plant_advance_n_equals_n_single_steps(rig_config, chunk):
     pieces = _run_plant(42, chunk, rig_config)
     assert whole.signals() == pieces.signals()
     assert whole.flow_at_meter_gps == pieces.flow_at_meter_gps
+    assert whole.shaft_revolutions == pieces.shaft_revolutions
 
 
 def test_plant_same_seed_same_run_different_seed_different_run(rig_config):

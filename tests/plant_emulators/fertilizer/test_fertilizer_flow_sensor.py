@@ -213,13 +213,21 @@ def test_field_vibration_adds_scatter(rig_config):
     assert window_sd(20.0) > 1.5 * window_sd(0.0)
 
 
-def test_sensor_step_rules(rig_config):
-    sensor = FlowSensor(rig_config.flow_sensor, np.random.default_rng(13))
+@pytest.mark.parametrize("engine", ["native", "python"])
+def test_sensor_step_rules(rig_config, engine):
+    sensor = FlowSensor(rig_config.flow_sensor, np.random.default_rng(13), engine=engine)
     with pytest.raises(ValueError, match="dt must be"):
         sensor.advance(1, 0.05, 0.0)
     sensor.advance(1, DT, 0.0)
     with pytest.raises(ValueError, match="dt changed"):
         sensor.advance(1, 0.002, 0.0)
+    with pytest.raises(ValueError, match="n must be >= 0"):
+        sensor.advance(-1, DT, 0.0)
+    with pytest.raises(TypeError):
+        sensor.advance(1.5, DT, 0.0)
+    with pytest.raises(TypeError):
+        sensor.advance(1, DT, None)
+    assert sensor.time_s == DT
     with pytest.raises(ValueError, match="mode"):
         FlowSensor(rig_config.flow_sensor, np.random.default_rng(13), mode="rolling")
 

@@ -255,22 +255,6 @@ def test_engine_comes_from_the_environment(sensor_config,
         FlowSensor(sensor_config, np.random.default_rng(0), engine="fast")
 
 
-def test_twin_keeps_the_step_checks(sensor_config) -> None:
-    sensor = FlowSensor(sensor_config, np.random.default_rng(0), engine="native")
-    with pytest.raises(ValueError, match="dt must be"):
-        sensor.advance(1, 0.05, 0.0)
-    sensor.advance(1, DT, 0.0)
-    with pytest.raises(ValueError, match="dt changed"):
-        sensor.advance(1, 0.002, 0.0)
-    with pytest.raises(ValueError, match="n must be >= 0"):
-        sensor.advance(-1, DT, 0.0)
-    with pytest.raises(TypeError):
-        sensor.advance(1.5, DT, 0.0)
-    with pytest.raises(TypeError):
-        sensor.advance(1, DT, None)
-    assert sensor.time_s == DT
-
-
 def test_twin_core_refuses_misuse() -> None:
     from plant_emulators.fertilizer._flow_sensor_native import FlowSensorCore
 

@@ -143,8 +143,9 @@ def test_signals_have_units(rig_config):
     assert all(unit for _, unit in sig.values())
 
 
-def test_ground_speed_step_rules(rig_config):
-    model = GroundSpeedModel(rig_config.ground_speed, np.random.default_rng(11))
+@pytest.mark.parametrize("engine", ["native", "python"])
+def test_ground_speed_step_rules(rig_config, engine):
+    model = GroundSpeedModel(rig_config.ground_speed, np.random.default_rng(11), engine=engine)
     with pytest.raises(ValueError, match="dt must be"):
         model.advance(1, 0.01)
     model.advance(1, DT)
@@ -152,3 +153,6 @@ def test_ground_speed_step_rules(rig_config):
         model.advance(1, 0.002)
     with pytest.raises(ValueError, match="n must be"):
         model.advance(-2, DT)
+    with pytest.raises(TypeError):
+        model.advance(1.5, DT)
+    assert model.time_s == DT

@@ -182,17 +182,6 @@ def test_hall_report_branches_match(config) -> None:
     assert {(1, False, False), (2, True), (2, False), "slowing"} <= kinds
 
 
-def test_split_calls_equal_one_call_in_the_twin(config) -> None:
-    """advance(n) equals n x advance(1) in the twin too (the runner relies on it)."""
-    one = GroundSpeedModel(config, np.random.default_rng(9), engine="native")
-    many = GroundSpeedModel(config, np.random.default_rng(9), engine="native")
-    one.target_speed_mps = many.target_speed_mps = 2.0
-    one.advance(3000, DT)
-    for _ in range(3000):
-        many.advance(1, DT)
-    assert _observe(one) == _observe(many)
-
-
 def test_odd_targets_are_read_as_the_python_model_reads_them(config) -> None:
     """Negative, integer and numpy targets: max(0.0, float(target)) on both sides."""
     script = [(30, -1.0), (30, 2), (30, np.float64(1.5)), (30, np.float32(0.7)), (30, -0.0)]
@@ -214,20 +203,6 @@ def test_engine_comes_from_the_environment(config, monkeypatch: pytest.MonkeyPat
     monkeypatch.delenv(ENV_VAR)
     with pytest.raises(ValueError, match="engine must be one of"):
         GroundSpeedModel(config, np.random.default_rng(0), engine="fast")
-
-
-def test_twin_keeps_the_step_checks(config) -> None:
-    model = GroundSpeedModel(config, np.random.default_rng(11), engine="native")
-    with pytest.raises(ValueError, match="dt must be"):
-        model.advance(1, 0.01)
-    model.advance(1, DT)
-    with pytest.raises(ValueError, match="dt changed"):
-        model.advance(1, 0.002)
-    with pytest.raises(ValueError, match="n must be"):
-        model.advance(-2, DT)
-    with pytest.raises(TypeError):
-        model.advance(1.5, DT)
-    assert model.time_s == DT
 
 
 def test_twin_raises_where_the_python_model_divides_by_zero(config) -> None:

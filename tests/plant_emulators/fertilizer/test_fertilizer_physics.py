@@ -240,15 +240,17 @@ def test_outputs_are_plain_floats_and_tuples(rig_config):
         assert all(type(v) is float for v in out)
 
 
-def test_step_size_rules(rig_config):
-    plant = FertilizerPlant(rig_config, np.random.default_rng(16))
-    with pytest.raises(ValueError, match="dt must be"):
+@pytest.mark.parametrize("engine", ["native", "python"])
+def test_step_size_rules(rig_config, engine):
+    plant = FertilizerPlant(rig_config, np.random.default_rng(16), engine=engine)
+    with pytest.raises(ValueError, match="dt must be in"):
         plant.advance(1, MAX_STEP_S * 2)
     plant.advance(1, DT)
     with pytest.raises(ValueError, match="dt changed"):
         plant.advance(1, DT / 2)
-    with pytest.raises(ValueError, match="n must be"):
+    with pytest.raises(ValueError, match="n must be >= 0"):
         plant.advance(-1, DT)
+    assert math.isfinite(plant.motor_speed_rpm)
 
 
 @pytest.mark.parametrize("index_range", [(0, 3), (-4, 0), (1, 10**6)])

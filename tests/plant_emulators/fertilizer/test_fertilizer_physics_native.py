@@ -10,8 +10,6 @@ transport delay lines wrapping, and 1 to 48 rows.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
@@ -200,17 +198,6 @@ def test_twin_matches_python_through_i2t_derating() -> None:
     assert python == _run("native", _config(), 5, script)
 
 
-def test_split_calls_equal_one_call_in_the_twin() -> None:
-    """advance(n) equals n x advance(1) in the twin too (the runner relies on it)."""
-    one = FertilizerPlant(_config(), np.random.default_rng(9), engine="native")
-    many = FertilizerPlant(_config(), np.random.default_rng(9), engine="native")
-    one.command_v = many.command_v = 4.0
-    one.advance(3000, DT)
-    for _ in range(3000):
-        many.advance(1, DT)
-    assert _observe(one) == _observe(many)
-
-
 def test_engine_comes_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv(ENV_VAR, "python")
     assert FertilizerPlant(_config(), np.random.default_rng(0)).engine == "python"
@@ -221,18 +208,6 @@ def test_engine_comes_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> N
         FertilizerPlant(_config(), np.random.default_rng(0))
     with pytest.raises(ValueError, match="engine must be one of"):
         FertilizerPlant(_config(), np.random.default_rng(0), engine="fast")
-
-
-def test_twin_keeps_the_step_checks() -> None:
-    plant = FertilizerPlant(_config(), np.random.default_rng(0), engine="native")
-    with pytest.raises(ValueError, match="dt must be in"):
-        plant.advance(1, 0.01)
-    plant.advance(1, DT)
-    with pytest.raises(ValueError, match="dt changed"):
-        plant.advance(1, 0.002)
-    with pytest.raises(ValueError, match="n must be >= 0"):
-        plant.advance(-1, DT)
-    assert math.isfinite(plant.motor_speed_rpm)
 
 
 def test_engine_module_examples_run() -> None:
