@@ -65,6 +65,15 @@ def format_send(msg: can.Message) -> bytes:
                      *[byte_text[b] for b in data[:n]], b" >"])
 
 
+def _receive_failed(exc: OSError) -> can.CanOperationError:
+    """The error for a failed read. A server that closes while bytes of ours are still unread
+    in its socket (it stopped before reading our last message) resets the connection instead
+    of ending it: that is still the server closing it, and is said so."""
+    if isinstance(exc, ConnectionResetError):
+        return can.CanOperationError(f"socketcand: the server closed the connection ({exc})")
+    return can.CanOperationError(f"socketcand: receive failed: {exc}")
+
+
 class SocketcandBus(can.BusABC):
     """A python-can bus on a socketcand server (agrihil's software bus, or socketcand itself).
 
@@ -190,7 +199,7 @@ class SocketcandBus(can.BusABC):
         except BlockingIOError:
             chunk = None
         except OSError as exc:
-            raise can.CanOperationError(f"socketcand: receive failed: {exc}") from exc
+            raise _receive_failed(exc) from exc
         if chunk is None and timeout != 0.0:
             chunk = self._wait(timeout)
         if chunk is None:
@@ -213,7 +222,7 @@ class SocketcandBus(can.BusABC):
                 except BlockingIOError:
                     continue
                 except OSError as exc:
-                    raise can.CanOperationError(f"socketcand: receive failed: {exc}") from exc
+                    raise _receive_failed(exc) from exc
         ms = -1 if timeout is None else max(0, int(timeout * 1000 + 0.999))
         if not self._poller.poll(ms):
             return None
@@ -222,7 +231,7 @@ class SocketcandBus(can.BusABC):
         except BlockingIOError:
             return None
         except OSError as exc:
-            raise can.CanOperationError(f"socketcand: receive failed: {exc}") from exc
+            raise _receive_failed(exc) from exc
 
     def _split(self, chunk: bytes) -> list[bytes]:
         """The bodies of the complete ``< … >`` messages in what was kept plus ``chunk``; the

@@ -5,6 +5,7 @@ rawmode hold, which a client ends by sending its next message."""
 from __future__ import annotations
 
 import socket
+import threading
 import time
 from collections.abc import Iterator
 
@@ -130,6 +131,43 @@ def test_a_closed_server_is_an_error(bus: SoftwareBus) -> None:
     with pytest.raises(can.CanOperationError, match="closed"):
         client.recv(2.0)
     client.shutdown()
+
+
+def _stop_without_reading(listener: socket.socket) -> None:
+    """A socketcand server that answers the handshake, then stops while the client's last
+    message ('< echo >') is still unread in its socket: the kernel resets the connection."""
+    while True:                        # open_bus probes the greeting with a connection first
+        conn, _ = listener.accept()
+        with conn:
+            conn.sendall(b"< hi >")
+            answered = 0
+            while answered < 2:        # '< open can0 >', '< rawmode >'
+                data = conn.recv(1)
+                if not data:
+                    break
+                if data == b">":
+                    conn.sendall(b"< ok >")
+                    answered += 1
+            if answered == 2:
+                time.sleep(0.2)        # '< echo >' arrives and stays unread
+                return
+
+
+def test_a_server_that_stops_with_our_message_unread_has_closed_the_connection() -> None:
+    """The race behind a flaky test_a_closed_server_is_an_error: a bus stopped before it read
+    the client's '< echo >' resets the connection; that too is "the server closed" it."""
+    with socket.create_server(("127.0.0.1", 0)) as listener:
+        server = threading.Thread(target=_stop_without_reading, args=(listener,), daemon=True)
+        server.start()
+        client = open_bus(f"socketcand:127.0.0.1:{listener.getsockname()[1]}/can0,"
+                          "client=agrihil")
+        try:
+            server.join(5.0)
+            with pytest.raises(can.CanOperationError,
+                               match=r"server closed the connection \(.*reset"):
+                client.recv(2.0)
+        finally:
+            client.shutdown()
 
 
 def _raw_client(bus: SoftwareBus, after_rawmode: bytes = b"") -> socket.socket:
