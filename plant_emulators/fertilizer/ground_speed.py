@@ -183,9 +183,8 @@ class GroundSpeedModel:
         own = spawn(rng)
         z_rng = spawn(own)
         n_mag = config.pulses_per_rev
-        self.pulse_spacing_errors: tuple[float, ...] = tuple(
+        self._pulse_spacing_errors: tuple[float, ...] = tuple(
             float(v) for v in config.pulse_spacing_error_sd_frac * own.standard_normal(n_mag))
-        """Per-magnet edge position error (fraction of a pulse pitch), drawn per run."""
         variation = config.speed_variation_sd_frac * float(own.standard_normal())
         wheel_slip = config.wheel_slip_mean_frac + config.wheel_slip_sd_frac * float(
             own.standard_normal())
@@ -241,6 +240,13 @@ class GroundSpeedModel:
         self._next_edge = 1.0 + self.pulse_spacing_errors[1 % n_mag]
         self._edges: deque[float] = deque(maxlen=_EDGE_HISTORY)
         self._update_outputs()
+
+    @property
+    def pulse_spacing_errors(self) -> tuple[float, ...]:
+        """Per-magnet edge position error (fraction of a pulse pitch), drawn per run.
+
+        Read-only: the C twin takes it (like the frozen config) when it is built."""
+        return self._pulse_spacing_errors
 
     # ------------------------------------------------------------------ stepping
     def _bind_dt(self, dt: float) -> None:

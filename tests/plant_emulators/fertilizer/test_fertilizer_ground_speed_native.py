@@ -210,7 +210,7 @@ def test_twin_raises_where_the_python_model_divides_by_zero(config) -> None:
     time divides by a zero step (ZeroDivisionError in Python; the twin says the same)."""
     errors = (-1.5,) * config.pulses_per_rev
     python = GroundSpeedModel(config, np.random.default_rng(0), engine="python")
-    python.pulse_spacing_errors = errors
+    python._pulse_spacing_errors = errors        # a test-only reach inside: read-only API
     python._next_edge = 1.0 + errors[1]
     with pytest.raises(ZeroDivisionError):
         python.advance(1, DT)
@@ -222,6 +222,14 @@ def test_twin_raises_where_the_python_model_divides_by_zero(config) -> None:
     core.bind(DT, model._k)
     with pytest.raises(ZeroDivisionError):
         core.advance(1, 0.0)
+
+
+@pytest.mark.parametrize("engine", ["native", "python"])
+def test_the_magnet_errors_are_fixed_for_the_run(config, engine: str) -> None:
+    """The twin takes them when it is built: they cannot be swapped under either engine."""
+    model = GroundSpeedModel(config, np.random.default_rng(0), engine=engine)
+    with pytest.raises(AttributeError):
+        model.pulse_spacing_errors = (0.0,) * config.pulses_per_rev  # type: ignore[misc]
 
 
 def test_a_broken_noise_source_is_reported_and_stops_the_twin(config) -> None:
