@@ -78,21 +78,22 @@ def _run_once(profile: DutProfile, scenario: Scenario, bus: str,
                                                **profile_run_options(profile))))
 
 
-def _report(benchmark: Any, label: str, sim_s: float, target: float | None) -> float:
+def _report(benchmark: Any, rounds: list[float], label: str, sim_s: float,
+            target: float | None) -> float:
     """Median wall time of the rounds → extra_info and the README's line; returns it."""
-    wall = float(benchmark.stats.stats.median)
+    wall = float(np.median(rounds))
     factor = sim_s / wall
     benchmark.extra_info.update(sim_s=sim_s, wall_s=round(wall, 4),
                                 realtime_factor=round(factor, 1), target_factor=target,
-                                rounds=[round(t, 4) for t in benchmark.stats.stats.data])
+                                rounds=[round(t, 4) for t in rounds])
     goal = f" (target >= {target:.0f}x)" if target else ""
     print(f"\n{label}: {sim_s:.0f} s simulated in {wall:.2f} s (x{factor:.0f}){goal}; "
-          f"rounds {', '.join(f'{t:.2f}' for t in benchmark.stats.stats.data)} s")
+          f"rounds {', '.join(f'{t:.2f}' for t in rounds)} s")
     return wall
 
 
 @pytest.mark.parametrize("case", list(CASES))
-def test_field_run_factor(benchmark: Any, case: str) -> None:
+def test_field_run_factor(benchmark: Any, timed_rounds: Any, case: str) -> None:
     """Wall time of one 63 s field run, lockstep, per way of running the controller."""
     path, bus, target = CASES[case]
     profile = load_profile(path)
@@ -105,18 +106,18 @@ def test_field_run_factor(benchmark: Any, case: str) -> None:
     results: list[RunResult] = []
     benchmark.pedantic(_run_once, args=(profile, scenario, bus, results),
                        rounds=ROUNDS, iterations=1, warmup_rounds=0)
-    _report(benchmark, f"fertilizer/{SCENARIO} lockstep, {profile.name} ({case})",
-            scenario.duration_s, target)
+    assert all(r.record["error"] is None for r in results)
+    assert all(r.sim_s == pytest.approx(scenario.duration_s) for r in results)
+    _report(benchmark, timed_rounds(), f"fertilizer/{SCENARIO} lockstep, {profile.name} "
+            f"({case})", scenario.duration_s, target)
     ready = [r.record["dut"].get("ready_s") for r in results]
     if any(x is not None for x in ready):
         benchmark.extra_info["dut_ready_s"] = ready
         print(f"  DUT start-up (until on the bus): {', '.join(f'{x:.3f}' for x in ready)} s")
-    assert all(r.record["error"] is None for r in results)
-    assert all(r.sim_s == pytest.approx(scenario.duration_s) for r in results)
 
 
 @pytest.mark.parametrize("length_s", LENGTHS_S)
-def test_campaign_length(benchmark: Any, length_s: float) -> None:
+def test_campaign_length(benchmark: Any, timed_rounds: Any, length_s: float) -> None:
     """Wall time of the in-process field run against the simulated length (is it linear?)."""
     profile = load_profile(DAEMON)
     scenario = dataclasses.replace(load_rig(profile.dut.rig).load_scenario(SCENARIO),
@@ -124,8 +125,9 @@ def test_campaign_length(benchmark: Any, length_s: float) -> None:
     results: list[RunResult] = []
     benchmark.pedantic(_run_once, args=(profile, scenario, "inline", results),
                        rounds=ROUNDS, iterations=1, warmup_rounds=0)
-    wall = _report(benchmark, f"campaign length {length_s:5.0f} s, in process on inline",
-                   length_s, 500.0)
+    assert all(r.record["error"] is None for r in results)
+    wall = _report(benchmark, timed_rounds(), f"campaign length {length_s:5.0f} s, in process "
+                   "on inline", length_s, 500.0)
     _CURVE[length_s] = wall
     if len(_CURVE) == len(LENGTHS_S):
         lengths, walls = np.array(list(_CURVE)), np.array(list(_CURVE.values()))
@@ -135,5 +137,4 @@ def test_campaign_length(benchmark: Any, length_s: float) -> None:
                                     fit_per_sim_s_ms=round(float(per_s) * 1e3, 3))
         print(f"\ncampaign length fit: wall = {fixed:.3f} s + {per_s * 1e3:.2f} ms per "
               f"simulated s (asymptotic x{1 / per_s:.0f}); worst residual {worst:.1%}")
-    assert all(r.record["error"] is None for r in results)
 

@@ -284,7 +284,7 @@ def server(request: pytest.FixtureRequest) -> Iterator[SoftwareBusProcess]:
         yield proc
 
 
-def test_throughput_cross_process(benchmark, server: SoftwareBusProcess) -> None:
+def test_throughput_cross_process(benchmark, timed_rounds, server: SoftwareBusProcess) -> None:
     n = 20_000
     sender = subprocess.Popen(
         [sys.executable, "-c",
@@ -328,14 +328,14 @@ def test_throughput_cross_process(benchmark, server: SoftwareBusProcess) -> None
         sender.stdin.close()
         sender.wait(10)
     steal1, total1, _ = _cpu_times()
-    rate = n / benchmark.stats.stats.median
+    assert not lost  # loss is a correctness failure, not a timing figure
+    rate = n / float(np.median(timed_rounds()))
     benchmark.extra_info.update(frames_per_s=rate, lost=len(lost))
     poll = "busy polling off" if "AGRIHIL_SOFTBUS_BUSY_POLL_US" in server._env else \
         "busy polling on"
     print(f"\nsoftware bus throughput (2 processes, {poll}): {rate:,.0f} frames/s, "
-          f"{'no loss' if not lost else f'LOSS {lost[:3]}'} (target >= 20,000); steal "
+          f"no loss (target >= 20,000); steal "
           f"{100.0 * (steal1 - steal0) / max(1, total1 - total0):.2f}%")
-    assert not lost  # loss is a correctness failure, not a timing figure
 
 
 # -- what busy polling costs the machine's other work --------------------------------------------
