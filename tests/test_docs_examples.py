@@ -1,6 +1,7 @@
 """The examples in the docs are run by the tests (issue 7): a doc example that breaks fails CI.
 
-Every fenced code block of the documents in ``DOCS`` is extracted and handled by its language:
+Every fenced code block of ``README.md`` and of every page of the documentation site (``docs/``,
+the list ``DOCS``) is extracted and handled by its language:
 
 ``sh`` / ``bash`` / ``shell`` / ``console``
     Each command line is run for real, in document order, as a reader would type it (a trailing
@@ -15,11 +16,14 @@ Every fenced code block of the documents in ``DOCS`` is extracted and handled by
     nothing else is changed.
 ``json`` / ``toml``
     Data examples, checked by the function ``DATA_CHECKS`` names for the document: the record
-    example of ``docs/qualification-record.md`` must have the keys a real record has; the
-    tolerance file of ``ci/README.md`` must load with the gate's own loader.
-no language
-    Not examples (layouts, synopses); a line in one that looks like a command (``hil ...``,
-    ``python ...``, ``bash ...``, ``$ ...``) fails: tag the block.
+    example of ``docs/reference/record-format.md`` must have the keys a real record has; the
+    baseline example of ``docs/reference/baseline-format.md`` and the tolerance file of
+    ``docs/guide/gate-and-ci.md`` must load with the gate's own loaders.
+no language, or ``text``
+    Not examples (layouts, synopses, diagrams); a line in one that looks like a command
+    (``hil ...``, ``python ...``, ``bash ...``, ``$ ...``) fails: tag the block.
+``{directive}``
+    A MyST directive (generated reference tables, API pages): not an example.
 
 Where commands run, and the rules that adapt them (the only ones):
 
@@ -80,16 +84,14 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 
-DOCS = (
-    "README.md",
-    "docs/adding-a-controller.md",
-    "docs/qualification-record.md",
-    "docs/reference-controllers.md",   # no fenced examples (pseudo-code is indented): none to run
-    "ci/README.md",
-    "firmware/README.md",
-    "plant_emulators/fertilizer/README.md",
-    "plant_emulators/sowing_depth/README.md",
-)
+def _documents() -> tuple[str, ...]:
+    """README.md and every page of the documentation site (``docs/``), in a stable order."""
+    pages = sorted(str(p.relative_to(REPO)) for p in (REPO / "docs").rglob("*.md")
+                   if "_build" not in p.parts)
+    return ("README.md", *pages)
+
+
+DOCS = _documents()
 
 SKIPPED: dict[tuple[str, str], str] = {
     ("README.md", "bash scripts/setup.sh && source .venv/bin/activate"):
@@ -99,7 +101,20 @@ SKIPPED: dict[tuple[str, str], str] = {
         "execs the command README quotes and runs that command",
     ("README.md", "bash scripts/test.sh"):
         "CI's own command: the whole test suite, this file included (~3 min)",
-    ("ci/README.md", "git diff ci/baselines/"):
+    ("docs/getting-started/install.md", "bash scripts/qualify.sh"):
+        "its first step reinstalls the venv; test_readme_main_job (slow) runs the command it execs",
+    ("docs/getting-started/install.md", "bash scripts/test.sh"):
+        "CI's own command: the whole test suite, this file included",
+    ("docs/getting-started/tour.md", "bash scripts/setup.sh && source .venv/bin/activate"):
+        "reinstalls the venv this test runs in; the test already runs inside it",
+    ("docs/guide/running-on-can.md",
+     "sudo ip link add dev vcan0 type vcan && sudo ip link set up vcan0"):
+        "needs kernel SocketCAN: tests/kernel runs this inside a user-mode Linux guest",
+    ("docs/guide/running-on-can.md",
+     "hil qualify dut_profiles/fertilizer-piecewise-pid-firmware.toml --bus socketcan:vcan0 "
+     "--out qual"):
+        "needs kernel SocketCAN: tests/kernel runs this inside a user-mode Linux guest",
+    ("docs/guide/gate-and-ci.md", "git diff ci/baselines/"):
         "reviews a change against the repository's history; the scratch checkout has none",
 }
 
@@ -110,7 +125,7 @@ PLACEHOLDERS = {
 
 #: names an API sketch leaves to the reader, per (document, n-th python block from 1)
 PYTHON_PRELUDES = {
-    ("plant_emulators/fertilizer/README.md", 1): '''\
+    ("docs/models/fertilizer.md", 1): '''\
 import can
 import numpy
 from plant_emulators.fertilizer.analog_output import AnalogOutputChannel
@@ -134,7 +149,7 @@ seed, n, dt = 0, 100, 0.001
 raw_mv, counter = 5000, 0
 received_msg = can.Message(arbitration_id=0x710, data=[0x05], is_extended_id=False)
 ''',
-    ("plant_emulators/sowing_depth/README.md", 1): "seed, n, dt = 0, 100, 0.001\n",
+    ("docs/models/sowing-depth.md", 1): "seed, n, dt = 0, 100, 0.001\n",
 }
 
 SHELL_LANGS = {"sh", "bash", "shell", "console"}
@@ -444,7 +459,9 @@ class DocRunner:
                 "DATA_CHECKS: add one (or make it an untagged block if it is not an example)")
             check(self, block)
             self.ran.append(f"{self.doc}:{block.lineno}: ```{block.lang} block ({check.__name__})")
-        elif block.lang == "":
+        elif block.lang.startswith("{"):
+            pass                                       # a MyST directive: generated content
+        elif block.lang in ("", "text"):
             for no, text in block.lines:
                 assert not re.match(r"\s*(\$ |hil |python3? |bash )", text), (
                     f"{self.doc}:{no}: a command in an untagged code block: tag it ```sh so "
@@ -563,9 +580,19 @@ def check_tolerance_example(runner: DocRunner, block: Block) -> None:
     load_tolerances(path)
 
 
+def check_baseline_example(runner: DocRunner, block: Block) -> None:
+    """The baseline example loads with the gate's own loader (keys match name + conditions)."""
+    from hil.gate.baseline import load_baseline
+
+    path = runner.scratch / f"baseline-{block.lineno}.json"
+    path.write_text(block.text)
+    load_baseline(path)
+
+
 DATA_CHECKS: dict[tuple[str, str], Callable[[DocRunner, Block], None]] = {
-    ("docs/qualification-record.md", "json"): check_record_example,
-    ("ci/README.md", "toml"): check_tolerance_example,
+    ("docs/reference/record-format.md", "json"): check_record_example,
+    ("docs/reference/baseline-format.md", "json"): check_baseline_example,
+    ("docs/guide/gate-and-ci.md", "toml"): check_tolerance_example,
 }
 
 
@@ -598,6 +625,7 @@ def test_skip_table_is_current() -> None:
     stale = [f"{doc}: {text}" for doc, text in SKIPPED if (doc, text) not in present]
     assert not stale, f"SKIPPED entries no document has any more: {stale}"
     assert all(doc in DOCS for doc, _ in PYTHON_PRELUDES), "a prelude for an unlisted document"
+    assert all(doc in DOCS for doc, _ in DATA_CHECKS), "a data check for an unlisted document"
 
 
 def test_every_document_with_examples_is_listed(repo_files: list[str]) -> None:

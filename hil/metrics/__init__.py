@@ -3,7 +3,7 @@
 =============  ==========================================================================
 ``step``       step response: response/rise/settling time, overshoot, steady-state error
 ``accuracy``   [F] eq. 15 application accuracy θ from target flow and delivered mass
-``tracking``   flow tracking error statistics (mean, MAE, RMS, max |e|; also % of target)
+``tracking``   flow tracking error statistics (mean, MAE, RMS, max abs(e); also % of target)
 ``depth``      GB/T 20865-2007 sowing-depth statistics and [D]-style point sampling
 ``timing``     rig timing-health summary, and the worst-case merge over runs
 =============  ==========================================================================

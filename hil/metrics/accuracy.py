@@ -31,7 +31,7 @@ Interp = Literal["linear", "previous"]
 
 
 def accuracy_theta(target_mass_g: float, true_mass_g: float) -> float:
-    """θ = (1 - |M1 - M2| / M1) · 100 %, [F] eq. 15 (M1 target, M2 true mass; M1 > 0)."""
+    """``θ = (1 - |M1 - M2| / M1) · 100 %``, [F] eq. 15 (M1 target, M2 true mass; M1 > 0)."""
     m1, m2 = float(target_mass_g), float(true_mass_g)
     if not m1 > 0 or not math.isfinite(m1):
         raise ValueError(f"target mass must be positive and finite, got {target_mass_g}")
