@@ -5,13 +5,14 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
-import socket
 import sys
 
 from hil.cli.args import add_host_port
-from hil.errors import BusError
+from hil.softbus.control import control
 from hil.softbus.faults import FaultKind
 from hil.softbus.server import SoftwareBus
+
+__all__ = ["add_subparser", "control"]
 
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -67,29 +68,6 @@ def _serve(args: argparse.Namespace) -> int:
 
     asyncio.run(bus.serve(on_listening=listening))
     return 0
-
-
-def control(host: str, port: int, words: list[str], timeout: float = 5.0) -> str:
-    """Send one ``< hil … >`` command to a running software bus and return its reply."""
-    try:
-        with socket.create_connection((host, port), timeout=timeout) as sock:
-            sock.settimeout(timeout)
-            greeting = sock.recv(64)
-            if not greeting.startswith(b"< hi >"):
-                raise BusError(f"{host}:{port} is not a software bus (got {greeting!r})")
-            sock.sendall(f"< hil {' '.join(words)} >".encode("ascii"))
-            reply = b""
-            while not reply.rstrip().endswith(b">"):
-                chunk = sock.recv(65536)
-                if not chunk:
-                    break
-                reply += chunk
-    except OSError as exc:
-        raise BusError(f"cannot reach the software bus at {host}:{port}: {exc}") from exc
-    text = reply.decode("ascii").strip()
-    if text.startswith("< hil error"):
-        raise BusError(f"software bus refused '{' '.join(words)}': {text[12:-2]}")
-    return text
 
 
 def _fault(args: argparse.Namespace) -> int:
