@@ -8,7 +8,7 @@ frame. Frames that arrive together are written to each receiver in one write (ba
 
 from __future__ import annotations
 
-import json
+import contextlib
 import logging
 import time
 from collections.abc import Callable
@@ -19,9 +19,11 @@ from typing import TYPE_CHECKING, Any
 import can
 
 from hil.softbus.arbiter import Arbiter
-from hil.softbus.faults import FaultError, FaultRule, FaultTable
+from hil.softbus.control import tokens_equal
+from hil.softbus.faults import FaultTable
 from hil.softbus.loop import EventLoop, Timer
 from hil.softbus.protocol import Frame, format_frame
+from hil.softbus.ratelog import AddressWarnings
 from hil.softbus.settings import DEFAULT_CHANNEL
 from hil.softbus.timing import ERROR_FRAME_BITS
 
@@ -32,6 +34,9 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 _ERROR_CLASS_CONTROLLER = 0x004  # CAN_ERR_CRTL, what SocketCAN reports for bus errors
+#: The most frames a delay fault holds back at once; beyond, frames it would delay are dropped
+#: and counted (``delayed_dropped``).
+MAX_DELAYED = 100_000
 
 
 @dataclass
@@ -44,6 +49,13 @@ class BusStats:
     dropped_slow: int = 0
     tx_overflow: int = 0
     protocol_errors: int = 0
+    #: clients disconnected for an error they cannot recover from (an endless message, not
+    #: reading their replies)
+    dropped_clients: int = 0
+    #: control commands refused because they came from a frame client (or a bad token)
+    control_refused: int = 0
+    #: delayed frames dropped because too many were waiting (:data:`MAX_DELAYED`)
+    delayed_dropped: int = 0
     clients_seen: int = 0
     busy_s: float = 0.0
 
@@ -53,8 +65,14 @@ class BusCore:
 
     def __init__(self, *, bitrate: int | None, log_path: Path | None, seed: int,
                  hold_s: float, max_client_buffer: int, client_sndbuf: int,
-                 loop: EventLoop | None = None) -> None:
+                 loop: EventLoop | None = None, control_token: str = "") -> None:
         self.bitrate = bitrate
+        #: what a connection must send (``< hil control TOKEN >``) to become a control
+        #: connection; empty: no connection may (see :mod:`hil.softbus.control`)
+        self.control_token = control_token
+        #: client warnings, once per address and then rate-limited
+        self.warnings = AddressWarnings(log)
+        self._delayed_pending = 0
         self.client_sndbuf = client_sndbuf
         self.hold_s = hold_s
         self.max_client_buffer = max_client_buffer
@@ -93,15 +111,31 @@ class BusCore:
         return self._wall0 + (mono - self._mono0)
 
     def attach(self, client: ClientSession) -> None:
+        """Put ``client`` on its channel (taking it off the one it was on, if any: a client
+        is on one channel at most, however often it asks)."""
         assert client.channel is not None
+        self._unlist(client)
         self.channels.setdefault(client.channel, []).append(client)
+        client.attached = client.channel
 
     def detach(self, client: ClientSession) -> None:
-        if client.channel and client in self.channels.get(client.channel, []):
-            self.channels[client.channel].remove(client)
+        """Forget ``client``: off its channel, out of the open batch, no transport."""
+        self._unlist(client)
         if self._batch:
             self._batch.pop(client, None)
         client.transport = None
+
+    def _unlist(self, client: ClientSession) -> None:
+        channel = client.attached
+        if channel is None:
+            return
+        client.attached = None
+        members = self.channels.get(channel)
+        if members is not None:
+            with contextlib.suppress(ValueError):
+                members.remove(client)
+            if not members:  # no empty lists left behind by channels nobody is on
+                del self.channels[channel]
 
     # batching -----------------------------------------------------------------------
     def begin_batch(self) -> bool:
@@ -185,13 +219,18 @@ class BusCore:
             if verdict.data is not None:
                 frame = Frame(frame.can_id, verdict.data, frame.extended)
             if verdict.delay_s > 0:
-                self.call_later(verdict.delay_s, self._delayed, sender, frame, channel,
-                                mono + verdict.delay_s)
+                if self._delayed_pending >= MAX_DELAYED:
+                    self.stats.delayed_dropped += 1
+                    return
+                if self.call_later(verdict.delay_s, self._delayed, sender, frame, channel,
+                                   mono + verdict.delay_s) is not None:
+                    self._delayed_pending += 1
                 return
         self._broadcast(sender, frame, channel, mono)
 
     def _delayed(self, sender: ClientSession | None, frame: Frame, channel: str,
                  mono: float) -> None:
+        self._delayed_pending -= 1
         outer = self.begin_batch()  # a local driver's open batch keeps the order
         try:
             self._broadcast(sender, frame, channel, mono)
@@ -234,37 +273,24 @@ class BusCore:
         out = {**asdict(self.stats), "faults": dict(self.faults.injected),
                "clients": {c.name: asdict(c.stats) for cs in self.channels.values()
                            for c in cs},
+               "clients_connected": len(self.connections),
                "bitrate": self.bitrate}
         if self.loop is not None and self.loop.busy_poll:
             out["busy_poll"] = self.loop.busy_poll.stats()
         return out
 
-    # control commands ----------------------------------------------------------------
-    def command(self, words: list[str]) -> str:
-        try:
-            return self._command(words)
-        except (FaultError, ValueError, IndexError) as exc:
-            return f"< hil error {str(exc).replace('<', '(').replace('>', ')')} >"
+    # control ----------------------------------------------------------------------------
+    def authorize(self, token: str) -> bool:
+        """Whether ``token`` is this bus's control token (constant-time comparison)."""
+        return bool(self.control_token) and tokens_equal(token, self.control_token)
 
-    def _command(self, words: list[str]) -> str:
-        if words[:2] == ["fault", "add"]:
-            rule_id = self.faults.add(FaultRule.parse(words[2:]))
-            return f"< hil ok {rule_id} >"
-        if words[:2] == ["fault", "clear"]:
-            self.faults.clear(int(words[2]) if len(words) > 2 else None)
-            return "< hil ok >"
-        if words[:2] == ["fault", "list"]:
-            rules = {rid: " ".join(r.to_words()) for rid, r in self.faults.rules().items()}
-            return f"< hil faults {json.dumps(rules)} >"
-        if words[:1] == ["errors"]:
-            count = int(words[1]) if len(words) > 1 else 1
-            channel = words[2] if len(words) > 2 else DEFAULT_CHANNEL
+    def inject_errors(self, count: int, channel: str = DEFAULT_CHANNEL) -> None:
+        """Put ``count`` error frames on ``channel`` now (callers bound ``count``)."""
+        outer = self.begin_batch()
+        try:
             for _ in range(count):
                 self.submit(None, Frame(_ERROR_CLASS_CONTROLLER, b"", True, error=True),
                             channel)
-            return "< hil ok >"
-        if words[:1] == ["stats"]:
-            return f"< hil stats {json.dumps(self.stats_dict())} >"
-        raise ValueError(f"unknown hil command {' '.join(words)!r}; known: fault add|clear|list, "
-                         "errors N, stats")
-
+        finally:
+            if outer:
+                self.end_batch()

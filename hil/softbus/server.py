@@ -29,6 +29,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import logging
+import re
 import socket
 import threading
 import time
@@ -37,6 +38,8 @@ from pathlib import Path
 from typing import Any
 
 from hil.errors import BusError
+from hil.softbus.commands import parse_errors
+from hil.softbus.control import CONTROL_TOKEN_ENV, new_token, remove_token, write_token
 from hil.softbus.core import BusCore, BusStats
 from hil.softbus.faults import FaultRule
 from hil.softbus.local import LocalBus, LocalEndpoint
@@ -59,6 +62,8 @@ from hil.softbus.settings import (
 from hil.softbus.transport import SocketTransport, Transport
 
 log = logging.getLogger(__name__)
+
+CONTROL_TOKEN = re.compile(r"[A-Za-z0-9_-]{16,128}")
 
 #: the names these classes had when they lived here (tests build a core and sessions directly)
 _Server = BusCore
@@ -91,6 +96,12 @@ class SoftwareBus:
     ``AGRIHIL_SOFTBUS_BUSY_POLL_US`` or 0, since a spinning thread would hold the embedding
     process's GIL; ``hil bus serve`` defaults to :data:`DEFAULT_BUSY_POLL_US`).
 
+    ``control_token``: what a connection must send (``< hil control TOKEN >``) before it may
+    send control commands (default: a fresh random one, :attr:`control_token`); with
+    ``token_file`` (default) the bus writes it to :func:`hil.softbus.control.token_path` of its
+    port while it listens, for ``hil bus fault``/``stats``. This process's own calls
+    (:meth:`add_fault`, :meth:`stats` …) need no token.
+
     >>> with SoftwareBus(port=0) as bus:          # doctest: +SKIP
     ...     spec = bus.spec()                      # 'socketcand:127.0.0.1:41234/can0'
     """
@@ -100,8 +111,11 @@ class SoftwareBus:
                  seed: int = 0, allow_remote: bool = False, hold_s: float = RAWMODE_HOLD_S,
                  max_client_buffer: int = MAX_CLIENT_BUFFER,
                  client_sndbuf: int = CLIENT_SNDBUF, busy_poll_us: float | None = None,
-                 takeover_s: float = TAKEOVER_S) -> None:
+                 takeover_s: float = TAKEOVER_S, control_token: str | None = None,
+                 token_file: bool = True) -> None:
         check_loopback(host, allow_remote)
+        if control_token is not None and not CONTROL_TOKEN.fullmatch(control_token):
+            raise SoftwareBusError("a control token is 16 to 128 letters, digits, '_' or '-'")
         if bitrate is not None and bitrate <= 0:
             raise SoftwareBusError(f"bitrate must be positive, got {bitrate}")
         self.host = host
@@ -111,7 +125,11 @@ class SoftwareBus:
         self.takeover_s = takeover_s
         self._state = BusCore(bitrate=bitrate, log_path=Path(log_path) if log_path else None,
                               seed=seed, hold_s=hold_s, max_client_buffer=max_client_buffer,
-                              client_sndbuf=client_sndbuf)
+                              client_sndbuf=client_sndbuf,
+                              control_token=control_token or new_token())
+        self._token_file = token_file
+        #: where the control token was written while the bus listens (None: nowhere)
+        self.token_path: Path | None = None
         self._loop: EventLoop | None = None
         self._listener: socket.socket | None = None
         self._thread: threading.Thread | None = None
@@ -149,9 +167,23 @@ class SoftwareBus:
         self._state.loop = loop
         loop.add(listener.fileno(), READ, self._accept)
         self._state.open_log()
+        if self._token_file:
+            try:
+                self.token_path = write_token(self.port, self.control_token)
+            except OSError as exc:
+                log.warning("software bus: cannot write its control token (%s); hil bus "
+                            "fault/stats need --token or $%s", exc, CONTROL_TOKEN_ENV)
+
+    @property
+    def control_token(self) -> str:
+        """What a control connection sends first: ``< hil control TOKEN >``."""
+        return self._state.control_token
 
     def _close(self) -> None:
         loop, self._loop = self._loop, None
+        if self.token_path is not None:
+            remove_token(self.port, self.control_token)
+            self.token_path = None
         if self._listener is not None:
             if loop is not None:
                 loop.remove(self._listener.fileno())
@@ -367,7 +399,13 @@ class SoftwareBus:
         self.call(lambda s: s.faults.clear(rule_id))
 
     def inject_error_frames(self, count: int = 1, channel: str = DEFAULT_CHANNEL) -> None:
-        self.call(lambda s: s.command(["errors", str(count), channel]))
+        """Put ``count`` error frames (at most :data:`~hil.softbus.commands.MAX_ERROR_FRAMES`)
+        on ``channel``."""
+        try:
+            count, channel = parse_errors(["errors", str(count), channel])
+        except ValueError as exc:
+            raise SoftwareBusError(str(exc)) from exc
+        self.call(lambda s: s.inject_errors(count, channel))
 
     def stats(self) -> dict[str, Any]:
         return dict(self.call(lambda s: s.stats_dict()))

@@ -14,6 +14,7 @@ import socket
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from hil.softbus import commands
 from hil.softbus.protocol import MessageSplitter, ProtocolError, parse_send
 from hil.softbus.transport import Transport
 
@@ -31,6 +32,7 @@ class ClientStats:
     sent: int = 0
     dropped_slow: int = 0
     protocol_errors: int = 0
+    control_refused: int = 0
 
 
 class ClientSession:
@@ -48,6 +50,13 @@ class ClientSession:
         self.held: list[bytes] | None = None  # frames waiting out the rawmode hold
         self.stats = ClientStats()
         self.name = "?"
+        #: the peer's host, what warnings are keyed by (a reconnect keeps it)
+        self.address = "?"
+        #: the channel the core lists this client on (None: on none)
+        self.attached: str | None = None
+        #: a control connection (sent the bus's token): may send ``< hil … >`` commands
+        self.control = False
+        self._command_running = False
         self._warned_slow = False
 
     # connection hooks ---------------------------------------------------------------------
@@ -68,14 +77,16 @@ class ClientSession:
             with contextlib.suppress(OSError):
                 peer = sock.getpeername()
                 self.name = f"{peer[0]}:{peer[1]}"
+                self.address = str(peer[0])
         self.server.stats.clients_seen += 1
         transport.write(b"< hi >")
 
     def data_received(self, data: bytes) -> None:
         try:
             messages = self.splitter.feed(data)
-        except ProtocolError as exc:
+        except ProtocolError as exc:  # no end in sight: the stream cannot be resynchronised
             self._protocol_error(str(exc))
+            self.drop(f"dropped: {exc}")
             return
         if len(messages) == 1:  # the latency case: one frame per read goes straight out
             self._handle(messages[0])  # (batching it would add 0.75 µs of bookkeeping)
@@ -125,9 +136,55 @@ class ClientSession:
         elif word == "echo":
             self._reply(b"< echo >")
         elif word == "hil":
-            self._reply(self.server.command(rest.split()).encode("ascii"))
+            self._control(rest.split())
         else:
             self._protocol_error(f"unsupported command {body!r}")
+
+    def _control(self, words: list[str]) -> None:
+        """A ``< hil … >`` command: a control connection's, or refused."""
+        server = self.server
+        if words[:1] == ["control"] and not self.control:
+            if len(words) == 2 and server.authorize(words[1]):
+                self.control = True
+                self._reply(b"< hil ok control >")
+            else:
+                self._refuse("wrong control token")
+            return
+        if not self.control:
+            self._refuse("control commands are for the control connection (hil bus fault, "
+                         "hil bus stats), not for frame clients")
+            return
+        if self._command_running:
+            self._reply(b"< hil error busy: the previous command is still running >")
+            return
+        self._command_running = True
+
+        def reply(text: str) -> None:
+            self._command_running = False
+            self._reply(text.encode("ascii", "replace"))
+
+        commands.run(server, words, reply, alive=lambda: self.transport is not None)
+
+    def _refuse(self, why: str) -> None:
+        self.stats.control_refused += 1
+        self.server.stats.control_refused += 1
+        self._warn("software bus: client %s sent a control command: refused (%s)",
+                   self.name, why)
+        self._reply(f"< hil error {why} >".encode("ascii"))
+
+    def drop(self, why: str) -> None:
+        """Disconnect this client for good (an error it cannot recover from), counted."""
+        transport = self.transport
+        if transport is None or transport.is_closing():
+            return
+        self.server.stats.dropped_clients += 1
+        self._warn("software bus: client %s %s", self.name, why)
+        close = getattr(transport, "close", None)
+        if close is not None:
+            close(None)
+
+    def _warn(self, message: str, *args: object) -> None:
+        self.server.warnings.warn(self.address, message, *args)
 
     def _send(self, args: str) -> None:
         try:
@@ -144,15 +201,19 @@ class ClientSession:
             self.transport.write(b"".join(held))
 
     def _reply(self, text: bytes) -> None:
-        if self.transport is not None:
+        transport = self.transport
+        if transport is not None:
             self.server.flush_batch()  # frames already due to this client go out first
-            self.transport.write(text)
+            if transport.get_write_buffer_size() > self.server.max_client_buffer:
+                # it asks and asks but never reads the answers: nothing else bounds them
+                self.drop("dropped: it does not read its replies")
+                return
+            transport.write(text)
 
     def _protocol_error(self, message: str) -> None:
         self.stats.protocol_errors += 1
         self.server.stats.protocol_errors += 1
-        if self.stats.protocol_errors <= 5:
-            log.warning("software bus: client %s: %s", self.name, message)
+        self._warn("software bus: client %s: %s", self.name, message[:200])
 
     def deliver(self, line: bytes) -> None:
         """Send one frame's line (or count it dropped if this client is not reading)."""
@@ -194,6 +255,6 @@ class ClientSession:
         self.server.stats.dropped_slow += n
         if not self._warned_slow:
             self._warned_slow = True
-            log.warning("software bus: client %s is not reading; dropping its frames "
-                        "(counted in stats) so the other clients are not stalled", self.name)
+            self._warn("software bus: client %s is not reading; dropping its frames "
+                       "(counted in stats) so the other clients are not stalled", self.name)
 
