@@ -4,14 +4,18 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import json
-import socket
+import os
 import sys
+import threading
 
 from hil.cli.args import add_host_port
-from hil.errors import BusError
+from hil.softbus.control import CONTROL_TOKEN_ENV, control
 from hil.softbus.faults import FaultKind
 from hil.softbus.server import SoftwareBus
+
+__all__ = ["add_subparser", "control"]
 
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -33,6 +37,9 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
                        help="after traffic, poll this long before sleeping (cuts round-trip "
                             "latency; no CPU when the bus is idle; 0: off; default: "
                             "$AGRIHIL_SOFTBUS_BUSY_POLL_US or 200)")
+    serve.add_argument("--exit-with-stdin", action="store_true",
+                       help="stop when stdin reaches EOF (a parent that holds the pipe's other "
+                            "end takes the bus with it when it dies)")
     serve.set_defaults(func=_serve)
 
     fault = sub.add_parser("fault", help="inject or clear faults on a running software bus")
@@ -48,48 +55,47 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
     fault.add_argument("--delay", type=float, default=0.0, help="seconds, with kind delay")
     fault.add_argument("--rule", type=int, default=None, help="with clear: only this rule")
     fault.add_argument("-n", type=int, default=1, help="with errors: how many error frames")
+    _add_token(fault)
     fault.set_defaults(func=_fault)
 
     stats = sub.add_parser("stats", help="print a running software bus's counters as JSON")
     add_host_port(stats)
+    _add_token(stats)
     stats.set_defaults(func=_stats)
+
+
+def _add_token(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--token", default=None,
+                        help="the bus's control token (default: the file the bus wrote for "
+                             f"its port, else ${CONTROL_TOKEN_ENV})")
 
 
 def _serve(args: argparse.Namespace) -> int:
     bus = SoftwareBus(args.host, args.port, bitrate=args.bitrate, log_path=args.log,
                       seed=args.seed, allow_remote=args.allow_remote,
-                      busy_poll_us=args.busy_poll_us)
+                      busy_poll_us=args.busy_poll_us,
+                      control_token=os.environ.get(CONTROL_TOKEN_ENV) or None)
 
     def listening(server: SoftwareBus) -> None:
         pace = f", paced at {args.bitrate} bit/s" if args.bitrate else ""
+        where = (f"; control token in {server.token_path}" if server.token_path is not None
+                 else f"; control token not written (set ${CONTROL_TOKEN_ENV} to choose it)")
         print(f"hil: software bus listening on {server.host}:{server.port}{pace}; "
-              f"spec {server.spec()}", flush=True)
+              f"spec {server.spec()}{where}", flush=True)
 
+    if args.exit_with_stdin:
+        threading.Thread(target=_stop_at_eof, args=(bus,), name="hil-softbus-stdin",
+                         daemon=True).start()
     asyncio.run(bus.serve(on_listening=listening))
     return 0
 
 
-def control(host: str, port: int, words: list[str], timeout: float = 5.0) -> str:
-    """Send one ``< hil … >`` command to a running software bus and return its reply."""
-    try:
-        with socket.create_connection((host, port), timeout=timeout) as sock:
-            sock.settimeout(timeout)
-            greeting = sock.recv(64)
-            if not greeting.startswith(b"< hi >"):
-                raise BusError(f"{host}:{port} is not a software bus (got {greeting!r})")
-            sock.sendall(f"< hil {' '.join(words)} >".encode("ascii"))
-            reply = b""
-            while not reply.rstrip().endswith(b">"):
-                chunk = sock.recv(65536)
-                if not chunk:
-                    break
-                reply += chunk
-    except OSError as exc:
-        raise BusError(f"cannot reach the software bus at {host}:{port}: {exc}") from exc
-    text = reply.decode("ascii").strip()
-    if text.startswith("< hil error"):
-        raise BusError(f"software bus refused '{' '.join(words)}': {text[12:-2]}")
-    return text
+def _stop_at_eof(bus: SoftwareBus) -> None:
+    """Stop the bus when stdin ends (the parent closed it, or died)."""
+    with contextlib.suppress(OSError, ValueError):
+        while sys.stdin.buffer.read1(4096):
+            pass
+    bus.request_stop()
 
 
 def _fault(args: argparse.Namespace) -> int:
@@ -110,11 +116,11 @@ def _fault(args: argparse.Namespace) -> int:
         words = ["fault", "list"]
     else:
         words = ["errors", str(args.n)]
-    print(control(args.host, args.port, words))
+    print(control(args.host, args.port, words, token=args.token))
     return 0
 
 
 def _stats(args: argparse.Namespace) -> int:
-    reply = control(args.host, args.port, ["stats"])
+    reply = control(args.host, args.port, ["stats"], token=args.token)
     print(json.dumps(json.loads(reply[len("< hil stats "):-2]), indent=2))
     return 0

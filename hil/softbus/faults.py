@@ -27,6 +27,12 @@ from enum import StrEnum
 
 from hil.errors import HilError
 
+#: The longest delay a rule may add: a delayed frame waits in a timer, and a longer delay
+#: only means more of them held at once.
+MAX_DELAY_S = 60.0
+#: The most rules at a time: every frame on the bus is checked against each.
+MAX_RULES = 64
+
 
 class FaultError(HilError, ValueError):
     """A fault command cannot be understood."""
@@ -58,6 +64,8 @@ class FaultRule:
             raise FaultError(f"count must be >= 0, got {self.count}")
         if self.kind is FaultKind.DELAY and self.delay_s <= 0:
             raise FaultError("a delay fault needs delay_s > 0")
+        if not 0.0 <= self.delay_s <= MAX_DELAY_S:
+            raise FaultError(f"delay_s must be within 0..{MAX_DELAY_S:g} s, got {self.delay_s}")
 
     def matches(self, can_id: int) -> bool:
         return (can_id & self.mask) == (self.can_id & self.mask)
@@ -129,6 +137,9 @@ class FaultTable:
         self._rng = random.Random(self.seed)
 
     def add(self, rule: FaultRule) -> int:
+        if len(self._rules) >= MAX_RULES:
+            raise FaultError(f"at most {MAX_RULES} fault rules at a time (every frame is "
+                             "checked against each); clear some first")
         rule_id = self._next_id
         self._next_id += 1
         self._rules[rule_id] = _Active(rule)

@@ -117,7 +117,9 @@ class MessageSplitter:
                 break
             out.append(buf[open_at + 1:close_at].decode("ascii", "replace").strip())
             start = close_at + 1
-        self._buffer = buf[start:]
-        if len(self._buffer) > self.MAX_MESSAGE:
+        rest = buf[start:]
+        if len(rest) > self.MAX_MESSAGE:
+            self._buffer = b""  # never kept: an endless message must not grow without bound
             raise ProtocolError(f"message longer than {self.MAX_MESSAGE} bytes without '>'")
+        self._buffer = rest
         return out

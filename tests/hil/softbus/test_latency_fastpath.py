@@ -175,6 +175,8 @@ def test_burst_end_to_end_order_stamps_and_counts(quick_bus: SoftwareBus) -> Non
 def test_a_reply_comes_after_the_frames_of_the_same_read(quick_bus: SoftwareBus) -> None:
     a, b = _raw_client(quick_bus), _raw_client(quick_bus)
     try:
+        a.sendall(f"< hil control {quick_bus.control_token} >".encode())  # a control client
+        assert a.recv(32) == b"< hil ok control >"
         time.sleep(0.05)
         a.sendall(b"< send 100 1 1 >< hil errors 1 >< send 101 1 2 >")
         assert [m.split()[1] for m in _read_messages(a, 2)] == [b"error", b"hil"]
