@@ -13,6 +13,7 @@ from hil.errors import ConfigError
 from hil.rig import Rig, RigContext
 from plant_emulators.sowing_depth.cia402_objects import ErrorCode
 from plant_emulators.sowing_depth.config import SowingDepthRigConfig, load_rig_config
+from plant_emulators.sowing_depth.controllers import PiDepthController
 from plant_emulators.sowing_depth.devices import (
     DrawWireDevice,
     GnssDevice,
@@ -21,7 +22,7 @@ from plant_emulators.sowing_depth.devices import (
     TerminalDevice,
     TractorSpeedDevice,
 )
-from plant_emulators.sowing_depth.frames import FrameCodec
+from plant_emulators.sowing_depth.frames import EDS_PATH, FrameCodec
 from plant_emulators.sowing_depth.gnss_serial import GnssSerialPort
 from plant_emulators.sowing_depth.nmea import GnssReceiver
 from plant_emulators.sowing_depth.physics import SowingDepthPlant
@@ -31,7 +32,8 @@ from plant_emulators.sowing_depth.sensors import (
     calibration_depth_mm,
 )
 
-EDS = Path(__file__).parent / "db" / "servo_cylinder_cia402.eds"
+#: The drive's EDS (defined in ``frames``; kept here under its old name for callers)
+EDS = EDS_PATH
 #: GB/T 20865-2007: for a target of 30 mm or more the qualified band is target ± 10 mm
 QUALIFIED_BAND_MM = 10.0
 
@@ -231,5 +233,4 @@ class SowingDepthRig(Rig):
 
     @classmethod
     def builtin_controllers(cls) -> dict[str, Callable[[], object]]:
-        from plant_emulators.sowing_depth.controllers import PiDepthController
         return {"pi": PiDepthController}
