@@ -117,8 +117,8 @@ class ErrorState:
             raise ValueError("error code 0x0000 means 'no error'; use clear()")
         if code in self.active:
             return None
-        self.active[code] = (register_bits_of(code) if bits is None else int(bits)) \
-            | ErrorRegister.GENERIC
+        self.active[code] = int((register_bits_of(code) if bits is None else int(bits))
+                                | ErrorRegister.GENERIC)
         if self.history_length:
             self.history.insert(0, ((int(info) & 0xFFFF) << 16) | code)
             del self.history[self.history_length:]
