@@ -41,6 +41,7 @@ from typing import Any
 
 import pytest
 
+from hil.dut.build import with_build_id
 from hil.dut.factory import make_dut, profile_run_options
 from hil.dut.profile import DutProfile, load_profile
 from hil.errors import ConfigError, HilError
@@ -68,6 +69,9 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     group.addoption("--hil-suite", metavar="NAMES", default="all",
                     help=f"comma-separated suites to run ({', '.join(SUITES)}, all); tests "
                          "without a hil_suite marker always run")
+    group.addoption("--hil-build-id", metavar="ID", default=None,
+                    help="build id of the DUT (a CI job's commit), instead of the profile's "
+                         "[dut] build_id")
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -76,7 +80,7 @@ def pytest_configure(config: pytest.Config) -> None:
     path = config.getoption("--hil-dut")
     if path:
         try:
-            profile = load_profile(path)
+            profile = with_build_id(load_profile(path), config.getoption("--hil-build-id"))
         except ConfigError as exc:
             raise pytest.UsageError(f"--hil-dut: {exc}") from exc
         session = QualificationSession(
@@ -159,6 +163,8 @@ class QualificationSession:
     runs: dict[tuple[Any, ...], _RunEntry] = field(default_factory=dict)
     by_item: dict[str, list[Measurement]] = field(default_factory=dict)
     invalid_bench: dict[str, str] = field(default_factory=dict)
+    #: what the DUT's build left for traceability (hashes, compiler), once it was built
+    build: dict[str, Any] = field(default_factory=dict)
 
     # --- runs ---------------------------------------------------------------------------------
     def run(self, nodeid: str, rig_cls: type[Rig], scenario: Scenario | str, *,
@@ -183,6 +189,8 @@ class QualificationSession:
         rel = f"runs/{_slug(nodeid)}{'-' + _slug(label) if label else ''}"
         out_dir = self.report_dir / rel
         dut, build = make_dut(profile, bus=bus, clock=clock, log_dir=out_dir)
+        if build and profile is self.profile:
+            self.build = {k: v for k, v in build.items() if k != "build_s"}
         result = run_scenario(rig_cls, scenario, dut, RunOptions(
             out_dir=out_dir, clock=clock, bus=bus, seed=seed_used,
             step_timeout_s=step_timeout_s,
@@ -319,7 +327,8 @@ class QualificationSession:
             "started_at": self.started_at,
             "wall_s": round(time.perf_counter() - self.t0, 3),
             "verdict": self._verdict(exitstatus),
-            "dut": {**self.profile.identity(), "parameters": self.profile.parameters},
+            "dut": {**self.profile.identity(), "parameters": self.profile.parameters,
+                    **({"build": self.build} if self.build else {})},
             "rig": {"name": rig_cls.name, **_rig_config_identity(rig_cls, self.profile)},
             "bus": self.bus, "clock": self.clock, "seed": self.seed,
             "suites": sorted(_wanted_suites(self.suites)),

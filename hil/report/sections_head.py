@@ -113,6 +113,27 @@ def _text(value: Any) -> str:
     return esc(value) if value not in (None, "") else DASH
 
 
+def build_items(build: Any) -> list[tuple[str, str]]:
+    """Device-block rows of a firmware build: the source set's and each artifact's SHA-256,
+    the compiler, whether the build came from the cache. A DUT that was not built (in-process,
+    daemon, physical, or a firmware twin on the inline bus) says so in one row."""
+    if not isinstance(build, dict) or not build:
+        return []
+    items = [("build sources sha256", _code(build.get("source_sha256")))]
+    for artifact in build.get("artifacts") or []:
+        if not isinstance(artifact, dict):
+            continue
+        size = artifact.get("bytes")
+        size_text = f" ({int(size):,} bytes)" if isinstance(size, int) else ""
+        items.append((f"artifact {artifact.get('path', '?')}",
+                      f"{_code(artifact.get('sha256'))}{esc(size_text)}"))
+    items.append(("compiler", _text(build.get("compiler") or "unknown (no CMake cache)")))
+    if "cached" in build:
+        items.append(("build", _text("from the build cache" if build.get("cached")
+                                     else "built for this qualification")))
+    return items
+
+
 def identity_section(qual: QualRecord) -> str:
     dut = qual.dut
     dut_items = [("name", _text(dut.get("name"))), ("version", _text(dut.get("version"))),
@@ -121,7 +142,8 @@ def identity_section(qual: QualRecord) -> str:
                  ("profile", _code(dut.get("profile"))),
                  ("profile sha256", _code(dut.get("profile_sha256")))]
     shown = {"name", "version", "build_id", "kind", "controller", "rig", "profile",
-             "profile_sha256"}
+             "profile_sha256", "build"}
+    dut_items += build_items(dut.get("build"))
     dut_items += [(k, _text(v)) for k, v in dut.items() if k not in shown]
     rig = qual.rig
     bench = [("rig", _text(rig.get("name"))),
