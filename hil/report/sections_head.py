@@ -69,7 +69,7 @@ def verdict_section(qual: QualRecord, runs: list[RunData], has_errors: bool) -> 
     counts = qual.counts()
     chips = "".join(
         f'<span class="chip c-{key}"><b>{counts[key]}</b> {label}</span>'
-        for key, label in (("pass", "pass"), ("fail", "fail"), ("marginal", "marginal"),
+        for key, label in (("pass", "pass"), ("marginal", "marginal pass"), ("fail", "fail"),
                            ("error", "error"), ("info", "info")))
     dut = qual.dut
     who = " ".join(str(x) for x in (dut.get("name"), dut.get("version")) if x) or "unnamed DUT"
@@ -83,8 +83,9 @@ def verdict_section(qual: QualRecord, runs: list[RunData], has_errors: bool) -> 
     <div class="verdict-who">{esc(who)} on the {esc(qual.rig_name or '?')} rig ·
       {esc(when(qual.started_at) or DASH)}</div>
     <div class="chips">{chips}</div>
-    <div class="small">{len(qual.measurements)} measurements · {len(qual.tests)} tests ·
-      {len(runs)} runs · marginal: a pass within 5 % of its limit span{more}</div>
+    <div class="small">{len(qual.measurements)} measurements (the chips add up to it) ·
+      {len(qual.tests)} tests · {len(runs)} runs · marginal pass: a pass within 5 % of its
+      limit span, counted apart from the other passes{more}</div>
     {f'<ul class="reasons">{items}</ul>' if items else ''}
   </div>
 </section>"""
