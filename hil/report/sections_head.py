@@ -73,6 +73,8 @@ def verdict_section(qual: QualRecord, runs: list[RunData], has_errors: bool) -> 
                            ("error", "error"), ("info", "info")))
     dut = qual.dut
     who = " ".join(str(x) for x in (dut.get("name"), dut.get("version")) if x) or "unnamed DUT"
+    if dut.get("build_id"):
+        who += f" (build {dut['build_id']})"
     reasons = _reasons(qual, runs)
     items = "".join(f"<li>{esc(r)}</li>" for r in reasons)
     more = ' <a href="#errors">Errors</a>' if has_errors else ""
