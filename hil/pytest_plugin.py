@@ -163,8 +163,6 @@ class QualificationSession:
     runs: dict[tuple[Any, ...], _RunEntry] = field(default_factory=dict)
     by_item: dict[str, list[Measurement]] = field(default_factory=dict)
     invalid_bench: dict[str, str] = field(default_factory=dict)
-    #: what the DUT's build left for traceability (hashes, compiler), once it was built
-    build: dict[str, Any] = field(default_factory=dict)
 
     # --- runs ---------------------------------------------------------------------------------
     def run(self, nodeid: str, rig_cls: type[Rig], scenario: Scenario | str, *,
@@ -189,8 +187,6 @@ class QualificationSession:
         rel = f"runs/{_slug(nodeid)}{'-' + _slug(label) if label else ''}"
         out_dir = self.report_dir / rel
         dut, build = make_dut(profile, bus=bus, clock=clock, log_dir=out_dir)
-        if build and profile is self.profile:
-            self.build = {k: v for k, v in build.items() if k != "build_s"}
         result = run_scenario(rig_cls, scenario, dut, RunOptions(
             out_dir=out_dir, clock=clock, bus=bus, seed=seed_used,
             step_timeout_s=step_timeout_s,
@@ -327,8 +323,7 @@ class QualificationSession:
             "started_at": self.started_at,
             "wall_s": round(time.perf_counter() - self.t0, 3),
             "verdict": self._verdict(exitstatus),
-            "dut": {**self.profile.identity(), "parameters": self.profile.parameters,
-                    **({"build": self.build} if self.build else {})},
+            "dut": {**self.profile.identity(), "parameters": self.profile.parameters},
             "rig": {"name": rig_cls.name, **_rig_config_identity(rig_cls, self.profile)},
             "bus": self.bus, "clock": self.clock, "seed": self.seed,
             "suites": sorted(_wanted_suites(self.suites)),

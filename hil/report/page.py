@@ -41,7 +41,7 @@ def render(qual: QualRecord, runs: list[RunData]) -> str:
     sections = {
         "verdict": verdict_section(qual, runs, has_errors=bool(errors)),
         "measurements": measurements_section(qual, runs),
-        "identity": identity_section(qual),
+        "identity": identity_section(qual, runs),
         "plots-step": plots.get("step", ""),
         "plots-field": plots.get("field", ""),
         "per-condition": condition_section(qual),

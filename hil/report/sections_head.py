@@ -137,7 +137,22 @@ def build_items(build: Any) -> list[tuple[str, str]]:
     return items
 
 
-def identity_section(qual: QualRecord) -> str:
+def dut_build(qual: QualRecord, runs: list[RunData]) -> Any:
+    """The build facts of the qualified DUT: the record's ``dut.build`` if it has one, else
+    the ``dut_build`` its runs' records carry (the first run of this DUT that was built)."""
+    if isinstance(qual.dut.get("build"), dict):
+        return qual.dut["build"]
+    name = qual.dut.get("name")
+    for run in runs:
+        build = run.record.get("dut_build")
+        identity = run.record.get("dut_identity")
+        same = not isinstance(identity, dict) or identity.get("name") == name
+        if isinstance(build, dict) and build and same:
+            return build
+    return None
+
+
+def identity_section(qual: QualRecord, runs: list[RunData]) -> str:
     dut = qual.dut
     dut_items = [("name", _text(dut.get("name"))), ("version", _text(dut.get("version"))),
                  ("build id", _code(dut.get("build_id"))), ("kind", _text(dut.get("kind"))),
@@ -146,7 +161,7 @@ def identity_section(qual: QualRecord) -> str:
                  ("profile sha256", _code(dut.get("profile_sha256")))]
     shown = {"name", "version", "build_id", "kind", "controller", "rig", "profile",
              "profile_sha256", "build"}
-    dut_items += build_items(dut.get("build"))
+    dut_items += build_items(dut_build(qual, runs))
     dut_items += [(k, _text(v)) for k, v in dut.items() if k not in shown]
     rig = qual.rig
     bench = [("rig", _text(rig.get("name"))),

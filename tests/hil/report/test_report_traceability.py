@@ -8,6 +8,7 @@ artifact, and the compiler CMake configured; the build id comes from the profile
 from __future__ import annotations
 
 import hashlib
+import json
 import re
 import shutil
 import subprocess
@@ -21,6 +22,8 @@ import pytest
 from hil.dut.build import compiler_version, ensure_built, source_sha256, with_build_id
 from hil.dut.profile import load_profile
 from hil.errors import ConfigError
+
+from .conftest import STEP_RUN
 
 ROOT = Path(__file__).resolve().parents[3]
 FIRMWARE_PROFILE = ROOT / "dut_profiles" / "fertilizer-open-loop-firmware.toml"
@@ -108,19 +111,30 @@ def test_cli_passes_the_build_id_to_the_suites(tmp_path: Path, sources: Path) ->
     assert not (tmp_path / "q" / "record.json").exists()
 
 
-def test_report_device_block_shows_the_build(make_qual_dir: Callable[..., Path],
-                                             base_record: dict[str, Any]) -> None:
+def _identity(qual: Path) -> str:
     from hil.report import write_html
 
+    page = write_html(qual).read_text(encoding="utf-8")
+    identity = page[page.index('<section id="identity">'):]
+    return identity[:identity.index("</section>")]
+
+
+def test_report_device_block_shows_the_build(make_qual_dir: Callable[..., Path],
+                                             base_record: dict[str, Any]) -> None:
     build = {"build_dir": "/cache/builds/fw-0123456789abcdef", "cached": True,
              "source_sha256": "0123456789abcdef" + "a" * 48,
              "artifacts": [{"path": "agrihil-fertilizer-fw", "sha256": "b" * 64,
                             "bytes": 123456}],
              "compiler": "cc (Debian 12.2.0-14) 12.2.0"}
-    base_record["dut"] = {**base_record["dut"], "build_id": "3f2a9c1", "build": build}
-    page = write_html(make_qual_dir(base_record)).read_text(encoding="utf-8")
-    identity = page[page.index('<section id="identity">'):]
-    identity = identity[:identity.index("</section>")]
+    base_record["dut"] = {**base_record["dut"], "build_id": "3f2a9c1"}
+    qual = make_qual_dir(base_record)
+    assert "build sources sha256" not in _identity(qual)      # no run was built
+    # the runs' records carry the build facts (the qualification record's dut is unchanged)
+    run_record = qual / STEP_RUN / "record.json"
+    data = json.loads(run_record.read_text())
+    data.update(dut_build=build, dut_identity={"name": base_record["dut"]["name"]})
+    run_record.write_text(json.dumps(data))
+    identity = _identity(qual)
     for text in ("3f2a9c1", "0123456789abcdef" + "a" * 48, "b" * 64, "123,456 bytes",
                  "agrihil-fertilizer-fw", "cc (Debian 12.2.0-14) 12.2.0",
                  "from the build cache"):
