@@ -41,6 +41,7 @@ from typing import Any
 
 import pytest
 
+from hil.dut.build import with_build_id
 from hil.dut.factory import make_dut, profile_run_options
 from hil.dut.profile import DutProfile, load_profile
 from hil.errors import ConfigError, HilError
@@ -68,6 +69,9 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     group.addoption("--hil-suite", metavar="NAMES", default="all",
                     help=f"comma-separated suites to run ({', '.join(SUITES)}, all); tests "
                          "without a hil_suite marker always run")
+    group.addoption("--hil-build-id", metavar="ID", default=None,
+                    help="build id of the DUT (a CI job's commit), instead of the profile's "
+                         "[dut] build_id")
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -76,7 +80,7 @@ def pytest_configure(config: pytest.Config) -> None:
     path = config.getoption("--hil-dut")
     if path:
         try:
-            profile = load_profile(path)
+            profile = with_build_id(load_profile(path), config.getoption("--hil-build-id"))
         except ConfigError as exc:
             raise pytest.UsageError(f"--hil-dut: {exc}") from exc
         session = QualificationSession(

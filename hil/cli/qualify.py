@@ -17,7 +17,7 @@ import sys
 from pathlib import Path
 
 from hil.cli.args import add_bus_clock
-from hil.dut.build import ensure_built
+from hil.dut.build import ensure_built, with_build_id
 from hil.dut.profile import load_profile
 from hil.errors import HilError
 
@@ -45,6 +45,9 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
     qualify.add_argument("-k", dest="keyword", default=None,
                          help="only tests matching this pytest -k expression")
     qualify.add_argument("--quiet", action="store_true", help="one line per test file")
+    qualify.add_argument("--build-id", default=None,
+                         help="the DUT's build id for the record (a CI job passes its commit); "
+                              "default: the profile's [dut] build_id")
     qualify.set_defaults(func=_qualify)
 
 
@@ -60,13 +63,16 @@ def pytest_args(args: argparse.Namespace, out: Path) -> list[str]:
         argv += ["--hil-seed", str(args.seed)]
     if args.keyword:
         argv += ["-k", args.keyword]
+    if getattr(args, "build_id", None) is not None:
+        argv += ["--hil-build-id", args.build_id]
     return argv
 
 
 def _qualify(args: argparse.Namespace) -> int:
     import pytest
 
-    profile = load_profile(args.profile)          # a bad profile never starts a run
+    # a bad profile (or build id) never starts a run
+    profile = with_build_id(load_profile(args.profile), args.build_id)
     out = Path(args.out)
     if out.exists() and (out / "record.json").exists():
         shutil.rmtree(out / "runs", ignore_errors=True)

@@ -17,6 +17,7 @@ from typing import Any
 
 from hil.cli.args import add_bus_clock
 from hil.dut import DutRunner, InProcessDut
+from hil.dut.build import with_build_id
 from hil.dut.factory import make_dut, profile_run_options
 from hil.dut.profile import load_profile
 from hil.errors import ConfigError
@@ -37,6 +38,9 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
     run.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
     run.add_argument("--plot", action="store_true", help="save plot.png of the main signals")
     run.add_argument("--csv", action="store_true", help="also write traces.csv")
+    run.add_argument("--build-id", default=None,
+                     help="with a DUT profile: its build id for the record (a CI job passes "
+                          "its commit); default: the profile's [dut] build_id")
     run.add_argument("--step-timeout", type=float, default=2.0,
                      help="lockstep: seconds to wait for the DUT's answer to SYNC")
     run.set_defaults(func=_run)
@@ -60,6 +64,11 @@ def _is_profile(dut: str | None) -> bool:
 
 def _run(args: argparse.Namespace) -> int:
     profile = load_profile(args.dut) if _is_profile(args.dut) else None
+    if args.build_id is not None:
+        if profile is None:
+            raise ConfigError("--build-id needs a DUT profile as --dut (a builtin has none)",
+                              key="build_id")
+        profile = with_build_id(profile, args.build_id)
     rig_name = args.rig or (profile.dut.rig if profile else None)
     if rig_name is None:
         print("hil: error: --rig is needed (or a DUT profile as --dut)", file=sys.stderr)

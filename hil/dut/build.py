@@ -5,13 +5,21 @@ The cache key is a hash of the build command and of every file under the profile
 same key are serialized with a lock file, so parallel qualifications build once. The build's
 output goes to ``build.log`` in the entry; a failed build raises :class:`DutError` with its
 tail.
+
+Traceability: what :func:`ensure_built` returns goes into the record (and the report's device
+block): the SHA-256 of the source set the cache is keyed on (the key is its first 16 hex
+digits), the SHA-256 and size of every artifact, and the C compiler CMake used (its
+``--version`` first line, found through ``CMakeCache.txt`` in the entry). The build id itself
+comes from the profile's ``[dut] build_id`` or the command line (:func:`with_build_id`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import fcntl
 import hashlib
 import os
+import re
 import subprocess
 import sys
 import time
@@ -44,6 +52,13 @@ def resolve(path: str, profile: DutProfile) -> Path:
 
 
 def source_hash(profile: DutProfile) -> str:
+    """The build cache key: the first 16 hex digits of :func:`source_sha256`."""
+    return source_sha256(profile)[:16]
+
+
+def source_sha256(profile: DutProfile) -> str:
+    """SHA-256 of the build command and of every file (path and bytes) under the profile's
+    ``build.sources``, in sorted order."""
     assert profile.build is not None
     digest = hashlib.sha256()
     digest.update("\0".join(profile.build.command).encode())
@@ -59,11 +74,13 @@ def source_hash(profile: DutProfile) -> str:
             digest.update(str(f.relative_to(PROJECT_ROOT) if f.is_relative_to(PROJECT_ROOT)
                               else f).encode())
             digest.update(f.read_bytes())
-    return digest.hexdigest()[:16]
+    return digest.hexdigest()
 
 
-def build_dir(profile: DutProfile) -> Path:
-    return cache_root() / "builds" / f"{profile.name}-{source_hash(profile)}"
+def build_dir(profile: DutProfile, digest: str | None = None) -> Path:
+    """The cache entry of ``profile`` (``digest``: its :func:`source_sha256`, if known)."""
+    key = (digest or source_sha256(profile))[:16]
+    return cache_root() / "builds" / f"{profile.name}-{key}"
 
 
 def expand(arg: str, profile: DutProfile, *, bus: str = "", build: Path | None = None) -> str:
@@ -75,11 +92,80 @@ def expand(arg: str, profile: DutProfile, *, bus: str = "", build: Path | None =
     return arg
 
 
+#: a build id is one line of printable text (a commit hash, a CI job's tag)
+_BUILD_ID = re.compile(r"[\x21-\x7e][\x20-\x7e]{0,199}")
+
+
+def with_build_id(profile: DutProfile, build_id: str | None) -> DutProfile:
+    """``profile`` with ``[dut] build_id`` set to ``build_id`` (None: unchanged).
+
+    Raises
+    ------
+    ConfigError
+        If ``build_id`` is empty, longer than 200 characters or not printable ASCII.
+    """
+    if build_id is None:
+        return profile
+    if not _BUILD_ID.fullmatch(build_id) or build_id != build_id.strip():
+        raise ConfigError(f"--build-id must be 1-200 printable ASCII characters without "
+                          f"leading or trailing spaces, got {build_id!r}", key="build_id")
+    return dataclasses.replace(profile, dut=dataclasses.replace(profile.dut,
+                                                                build_id=build_id))
+
+
+def file_sha256(path: Path) -> str:
+    """SHA-256 of a file's bytes (read in 1 MiB blocks)."""
+    digest = hashlib.sha256()
+    with path.open("rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def compiler_version(build: Path) -> str:
+    """First line of ``--version`` of the C (else C++) compiler CMake configured in ``build``
+    (from its ``CMakeCache.txt``); "" when there is none or it does not answer."""
+    cache = build / "CMakeCache.txt"
+    if not cache.is_file():
+        return ""
+    text = cache.read_text(errors="replace")
+    for key in ("CMAKE_C_COMPILER", "CMAKE_CXX_COMPILER"):
+        match = re.search(rf"^{key}:[A-Z]+=(.+)$", text, re.MULTILINE)
+        if not match or not match.group(1).strip():
+            continue
+        try:
+            proc = subprocess.run([match.group(1).strip(), "--version"], capture_output=True,
+                                  text=True, timeout=30, check=False)
+        except (OSError, subprocess.TimeoutExpired):
+            continue
+        lines = proc.stdout.strip().splitlines()
+        if proc.returncode == 0 and lines:
+            return lines[0].strip()
+    return ""
+
+
+def _traceability(digest: str, target: Path, artifacts: list[Path]) -> dict[str, object]:
+    """What identifies the binary: source set, artifacts, compiler (kept in the entry)."""
+    compiler_file = target / ".compiler"
+    if compiler_file.exists():
+        compiler = compiler_file.read_text().strip()
+    else:
+        compiler = compiler_version(target)
+        compiler_file.write_text(compiler + "\n")
+    return {"source_sha256": digest,
+            "artifacts": [{"path": str(a.relative_to(target) if a.is_relative_to(target)
+                                       else a),
+                           "sha256": file_sha256(a), "bytes": a.stat().st_size}
+                          for a in artifacts],
+            "compiler": compiler}
+
+
 def ensure_built(profile: DutProfile) -> dict[str, object]:
     """Build ``profile`` unless its cache entry is complete; returns what the record keeps."""
     if profile.build is None:
         return {}
-    target = build_dir(profile)
+    digest = source_sha256(profile)
+    target = build_dir(profile, digest)
     target.mkdir(parents=True, exist_ok=True)
     done = target / ".built"
     with (target / ".lock").open("w") as lock:
@@ -87,7 +173,8 @@ def ensure_built(profile: DutProfile) -> dict[str, object]:
         artifacts = [resolve(expand(a, profile, build=target), profile)
                      for a in profile.build.artifacts]
         if done.exists() and all(a.exists() for a in artifacts):
-            return {"build_dir": str(target), "cached": True, "build_s": 0.0}
+            return {"build_dir": str(target), "cached": True, "build_s": 0.0,
+                    **_traceability(digest, target, artifacts)}
         command = [expand(a, profile, build=target) for a in profile.build.command]
         log_path = target / "build.log"
         t0 = time.perf_counter()
@@ -111,5 +198,8 @@ def ensure_built(profile: DutProfile) -> dict[str, object]:
         if missing:
             raise DutError(f"{profile.path}: [build.artifacts] the build did not produce "
                            f"{', '.join(missing)}")
+        (target / ".compiler").unlink(missing_ok=True)
+        facts = _traceability(digest, target, artifacts)
         done.write_text(f"{elapsed:.3f}\n")
-        return {"build_dir": str(target), "cached": False, "build_s": round(elapsed, 3)}
+        return {"build_dir": str(target), "cached": False, "build_s": round(elapsed, 3),
+                **facts}

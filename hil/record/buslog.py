@@ -15,11 +15,18 @@ wall time (some 15 % of it on the sowing-depth rig, 44,000 frames a minute); the
 about 1 µs. They are the writer's own, byte for byte: each format's formatter is checked against
 its python-can writer on probe frames when the log is opened, and a writer whose output differs
 (another python-can version, say) gets every frame the ordinary way.
+
+Time: frames carry the run's clock (seconds from the run's start). The ``.asc`` trigger block
+is dated with the wall-clock time of its first frame (the run's start plus that frame's run
+time), not python-can's ``datetime.fromtimestamp(first time stamp)``, which dated it 1970: so
+``ASCReader(relative_timestamp=False)`` and can-utils ``asc2log`` place the log in time.
 """
 
 from __future__ import annotations
 
+import datetime as dt
 import io
+import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
@@ -161,9 +168,35 @@ def _stamped(msg: can.Message, time_s: float, *, rx: bool, channel: str) -> can.
 _BATCH = 1024
 
 
+def _begin_asc_trigger_block(writer: ASCWriter, first_s: float, start_epoch_s: float) -> None:
+    """What ``ASCWriter.log_event`` writes before its first frame, with the trigger block
+    dated ``start_epoch_s + first_s`` (local time, as python-can writes the ``date`` line) and
+    the relative time stamps still counted from the first frame's ``first_s``."""
+    when = dt.datetime.fromtimestamp(start_epoch_s + first_s)
+    writer.file.write(f"Begin Triggerblock {writer._format_header_datetime(when)}\n")
+    writer.header_written = True
+    writer.started = writer.last_timestamp = first_s
+    writer.log_event("Start of measurement")
+
+
 class BusLog:
+    """The run's bus log in one or more formats.
+
+    Parameters
+    ----------
+    directory
+        Where the files go (``<stem>.<format>`` each).
+    stem, formats, channel
+        File stem, the formats (file suffixes python-can knows), the channel name written.
+    start_epoch_s
+        POSIX time of the run's time 0 (default: when the log is opened, which is when the
+        recorder starts the run); dates the ``.asc`` trigger block.
+    """
+
     def __init__(self, directory: Path, *, stem: str = "bus",
-                 formats: Iterable[str] = DEFAULT_FORMATS, channel: str = "can0") -> None:
+                 formats: Iterable[str] = DEFAULT_FORMATS, channel: str = "can0",
+                 start_epoch_s: float | None = None) -> None:
+        self.start_epoch_s = time.time() if start_epoch_s is None else start_epoch_s
         self.paths = [directory / f"{stem}.{fmt.lstrip('.')}" for fmt in formats]
         self.channel = channel
         self._writers: list[can.Listener] = []
@@ -202,6 +235,8 @@ class BusLog:
         ordinary = not (msg.is_error_frame or msg.is_remote_frame or msg.is_fd)
         stamped = None
         for writer, fast, lines in zip(self._writers, self._fast, self._pending, strict=True):
+            if type(writer) is ASCWriter and not writer.header_written:
+                _begin_asc_trigger_block(writer, time_s, self.start_epoch_s)
             if fast is not None and ordinary:
                 span = fast.span
                 if span is None:

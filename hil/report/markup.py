@@ -81,7 +81,9 @@ def link(path: str, text: str) -> str:
 
 def figure(image: Image, caption: str = "") -> str:
     cap = f"<figcaption>{caption}</figcaption>" if caption else ""
-    return (f'<figure><img alt="{esc(image.alt)}" src="{image.uri}">{cap}</figure>')
+    size = (f' width="{image.width}" height="{image.height}"'
+            if image.width and image.height else "")
+    return (f'<figure><img alt="{esc(image.alt)}"{size} src="{image.uri}">{cap}</figure>')
 
 
 def note(text: str) -> str:

@@ -21,8 +21,10 @@ from hil.report.style import CSS
 
 REPORT_NAME = "report.html"
 
-_NAV = (("verdict", "Verdict"), ("identity", "Device and bench"),
-        ("measurements", "Measurements"), ("plots-step", "Step responses"),
+# the verdict and the measurement table fill the first screenful (1366x768); who was tested
+# on what bench follows them (the verdict banner names the DUT, its version and build)
+_NAV = (("verdict", "Verdict"), ("measurements", "Measurements"),
+        ("identity", "Device and bench"), ("plots-step", "Step responses"),
         ("plots-field", "Field runs"), ("per-condition", "Per condition"),
         ("plots-other", "Other runs"), ("timing", "Timing"), ("runs", "Runs"),
         ("tests", "Tests"), ("errors", "Errors"))
@@ -38,8 +40,8 @@ def render(qual: QualRecord, runs: list[RunData]) -> str:
     plots = run_plot_sections(runs)
     sections = {
         "verdict": verdict_section(qual, runs, has_errors=bool(errors)),
-        "identity": identity_section(qual),
         "measurements": measurements_section(qual, runs),
+        "identity": identity_section(qual, runs),
         "plots-step": plots.get("step", ""),
         "plots-field": plots.get("field", ""),
         "per-condition": condition_section(qual),

@@ -12,7 +12,16 @@ from typing import Any
 
 import numpy as np
 
-from hil.report.figures import COLORS, Image, decimate, new_figure, to_image
+from hil.report.figures import (
+    COLORS,
+    LABEL_PT,
+    TEXT_PT,
+    TITLE_PT,
+    Image,
+    decimate,
+    new_figure,
+    to_image,
+)
 from hil.report.rundata import RunData
 
 BAND_FRACTION = 0.05
@@ -76,7 +85,7 @@ def _plot_group(ax: Any, run: RunData, title: str, signals: list[str], sl: slice
         label = f"{'true' if role == 'truth' else role}: {name}" + (f" [{unit}]" if unit else "")
         ax.plot(t, run.traces[name][sl], color=COLORS[role] if role != "truth" else None,
                 label=label, **_STYLE[role])
-    ax.set_title(title, fontsize=9, loc="left")
+    ax.set_title(title, fontsize=TITLE_PT, loc="left")
     return present
 
 
@@ -102,7 +111,7 @@ def _mark_events(ax: Any, run: RunData) -> None:
         ax.axvline(float(event["t"]), color="#555555", ls=":", lw=1.0, zorder=1)
         ax.annotate(_event_text(event), (float(event["t"]), 1.0),
                     xycoords=("data", "axes fraction"), xytext=(3, -10 - 9 * (k % 3)),
-                    textcoords="offset points", fontsize=7, color="#444444",
+                    textcoords="offset points", fontsize=TEXT_PT, color="#444444",
                     bbox={"boxstyle": "square,pad=0.1", "fc": "white", "ec": "none",
                           "alpha": 0.8})
         k += 1
@@ -177,18 +186,18 @@ def _truth_depth_panel(ax: Any, run: RunData) -> None:
     if "distance_m" in traces and setpoints:
         ax.plot(traces["distance_m"], traces[setpoints[0]], color=COLORS["setpoint"], ls="--",
                 lw=1.2, label=setpoints[0])
-    ax.set_title("true seed depth along the row (truth.npz)", fontsize=9, loc="left")
-    ax.set_xlabel("distance [m]", fontsize=8)
-    ax.set_ylabel("mm", fontsize=8)
+    ax.set_title("true seed depth along the row (truth.npz)", fontsize=TITLE_PT, loc="left")
+    ax.set_xlabel("distance [m]", fontsize=LABEL_PT)
+    ax.set_ylabel("mm", fontsize=LABEL_PT)
 
 
 def _finish(axes: Any, xlabel_axis: Any) -> None:
-    xlabel_axis.set_xlabel("time [s]", fontsize=8)
+    xlabel_axis.set_xlabel("time [s]", fontsize=LABEL_PT)
     for ax in axes:
         if ax.has_data():
             # below the panel (a legend inside would hide the step it explains), clear of the
             # tick labels and the axis label: the pad is in font sizes, whatever the height
-            ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(0.0, 0.0), ncol=2,
+            ax.legend(fontsize=TEXT_PT, loc="upper left", bbox_to_anchor=(0.0, 0.0), ncol=2,
                       borderaxespad=4.2 if ax.get_xlabel() else 2.4, frameon=False,
                       handlelength=1.8, columnspacing=1.2)
 

@@ -121,12 +121,11 @@ class QualRecord:
         return str(self.rig.get("name") or self.dut.get("rig") or "")
 
     def counts(self) -> dict[str, int]:
-        """Measurements per status; ``pass`` includes the marginal ones."""
+        """Measurements per status, each counted once (``pass`` without the marginal ones),
+        so the counts add up to the number of measurements."""
         out = dict.fromkeys(("pass", "marginal", "fail", "error", "info"), 0)
         for m in self.measurements:
             out[m.status] += 1
-            if m.status == "marginal":
-                out["pass"] += 1
         return out
 
 

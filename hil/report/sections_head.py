@@ -69,10 +69,12 @@ def verdict_section(qual: QualRecord, runs: list[RunData], has_errors: bool) -> 
     counts = qual.counts()
     chips = "".join(
         f'<span class="chip c-{key}"><b>{counts[key]}</b> {label}</span>'
-        for key, label in (("pass", "pass"), ("fail", "fail"), ("marginal", "marginal"),
+        for key, label in (("pass", "pass"), ("marginal", "marginal pass"), ("fail", "fail"),
                            ("error", "error"), ("info", "info")))
     dut = qual.dut
     who = " ".join(str(x) for x in (dut.get("name"), dut.get("version")) if x) or "unnamed DUT"
+    if dut.get("build_id"):
+        who += f" (build {dut['build_id']})"
     reasons = _reasons(qual, runs)
     items = "".join(f"<li>{esc(r)}</li>" for r in reasons)
     more = ' <a href="#errors">Errors</a>' if has_errors else ""
@@ -83,8 +85,9 @@ def verdict_section(qual: QualRecord, runs: list[RunData], has_errors: bool) -> 
     <div class="verdict-who">{esc(who)} on the {esc(qual.rig_name or '?')} rig ·
       {esc(when(qual.started_at) or DASH)}</div>
     <div class="chips">{chips}</div>
-    <div class="small">{len(qual.measurements)} measurements · {len(qual.tests)} tests ·
-      {len(runs)} runs · marginal: a pass within 5 % of its limit span{more}</div>
+    <div class="small">{len(qual.measurements)} measurements (the chips add up to it) ·
+      {len(qual.tests)} tests · {len(runs)} runs · marginal pass: a pass within 5 % of its
+      limit span, counted apart from the other passes{more}</div>
     {f'<ul class="reasons">{items}</ul>' if items else ''}
   </div>
 </section>"""
@@ -113,7 +116,43 @@ def _text(value: Any) -> str:
     return esc(value) if value not in (None, "") else DASH
 
 
-def identity_section(qual: QualRecord) -> str:
+def build_items(build: Any) -> list[tuple[str, str]]:
+    """Device-block rows of a firmware build: the source set's and each artifact's SHA-256,
+    the compiler, whether the build came from the cache. A DUT that was not built (in-process,
+    daemon, physical, or a firmware twin on the inline bus) says so in one row."""
+    if not isinstance(build, dict) or not build:
+        return []
+    items = [("build sources sha256", _code(build.get("source_sha256")))]
+    for artifact in build.get("artifacts") or []:
+        if not isinstance(artifact, dict):
+            continue
+        size = artifact.get("bytes")
+        size_text = f" ({int(size):,} bytes)" if isinstance(size, int) else ""
+        items.append((f"artifact {artifact.get('path', '?')}",
+                      f"{_code(artifact.get('sha256'))}{esc(size_text)}"))
+    items.append(("compiler", _text(build.get("compiler") or "unknown (no CMake cache)")))
+    if "cached" in build:
+        items.append(("build", _text("from the build cache" if build.get("cached")
+                                     else "built for this qualification")))
+    return items
+
+
+def dut_build(qual: QualRecord, runs: list[RunData]) -> Any:
+    """The build facts of the qualified DUT: the record's ``dut.build`` if it has one, else
+    the ``dut_build`` its runs' records carry (the first run of this DUT that was built)."""
+    if isinstance(qual.dut.get("build"), dict):
+        return qual.dut["build"]
+    name = qual.dut.get("name")
+    for run in runs:
+        build = run.record.get("dut_build")
+        identity = run.record.get("dut_identity")
+        same = not isinstance(identity, dict) or identity.get("name") == name
+        if isinstance(build, dict) and build and same:
+            return build
+    return None
+
+
+def identity_section(qual: QualRecord, runs: list[RunData]) -> str:
     dut = qual.dut
     dut_items = [("name", _text(dut.get("name"))), ("version", _text(dut.get("version"))),
                  ("build id", _code(dut.get("build_id"))), ("kind", _text(dut.get("kind"))),
@@ -121,7 +160,8 @@ def identity_section(qual: QualRecord) -> str:
                  ("profile", _code(dut.get("profile"))),
                  ("profile sha256", _code(dut.get("profile_sha256")))]
     shown = {"name", "version", "build_id", "kind", "controller", "rig", "profile",
-             "profile_sha256"}
+             "profile_sha256", "build"}
+    dut_items += build_items(dut_build(qual, runs))
     dut_items += [(k, _text(v)) for k, v in dut.items() if k not in shown]
     rig = qual.rig
     bench = [("rig", _text(rig.get("name"))),

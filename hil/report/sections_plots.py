@@ -78,8 +78,10 @@ def condition_section(qual: QualRecord) -> str:
             blocks.append(note(f"{name}: chart failed ({type(exc).__name__}: {exc})"))
     figures = "\n".join(blocks)
     return (f'<section id="per-condition"><h2>Measurements per condition</h2>'
-            f'<p class="small">Every measurement taken under more than one condition. Bars: '
-            f'green pass, amber marginal, red fail, "error" no value; dashed red: the limit.</p>'
+            f'<p class="small">Every measurement taken under more than one condition. Dots: '
+            f'green pass, amber marginal, red fail, a cross "error" no value; dashed red: the '
+            f'limit; shaded green: the values that pass. The value axis spans the values and '
+            f'their limits, so a value is seen at the scale of its margin.</p>'
             f'<div class="grid">{figures}</div></section>')
 
 

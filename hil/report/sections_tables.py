@@ -92,6 +92,38 @@ def _timing_cell(run: RunData) -> str:
     return esc(text) + ("" if timing.get("valid", True) else " " + badge("invalid-bench"))
 
 
+def gnss_epochs(run: RunData) -> dict[str, float] | None:
+    """The run's GNSS serial epoch counts (``truth.gnss_epochs``), None when it has none."""
+    truth = run.record.get("truth")
+    counts = truth.get("gnss_epochs") if isinstance(truth, dict) else None
+    if not isinstance(counts, dict):
+        return None
+    return {k: v for k, v in counts.items()
+            if isinstance(v, int | float) and not isinstance(v, bool)}
+
+
+def _timing_and_lines_cell(run: RunData) -> str:
+    """The run's timing, and what the GNSS serial line delivered when the rig has one:
+    losses (overrun, dropped: the DUT read too slowly; late: the bench) are flagged."""
+    cell = _timing_cell(run)
+    counts = gnss_epochs(run)
+    if counts is None:
+        return cell
+    parts = [f"{counts.get('written', 0):.0f} written"]
+    parts += [f"{counts[k]:.0f} {k}" for k in ("overrun", "dropped", "late") if counts.get(k)]
+    lost = any(counts.get(k) for k in ("overrun", "dropped"))
+    flag = ""
+    if lost and not counts.get("written_after_loss"):
+        first = counts.get("first_loss_s")
+        since = f" after {first:g} s" if first is not None else ""
+        parts.append(f"the DUT did not read the port{since}")
+        flag = " " + badge("info", "PORT NOT READ")
+    elif lost:
+        flag = " " + badge("marginal", "EPOCHS LOST")
+    return (f'{cell}<br><span class="small gnss-epochs">GNSS epochs: '
+            f'{esc(", ".join(parts))}</span>{flag}')
+
+
 def _counts_cell(run: RunData) -> str:
     counts = Counter(m.status for m in run.measurements)
     return ", ".join(f"{n} {s}" for s, n in sorted(counts.items(),
@@ -109,7 +141,7 @@ def runs_section(runs: list[RunData]) -> str:
         verdict = badge(run.result) if run.result else DASH
         rows.append(row([first, esc(run.scenario) or DASH, verdict,
                          esc(fmt_seconds(run.ref.sim_s)), esc(fmt_seconds(run.ref.wall_s)),
-                         _timing_cell(run), esc(_counts_cell(run)), arts],
+                         _timing_and_lines_cell(run), esc(_counts_cell(run)), arts],
                         f"r-{run.result or 'unknown'}"))
     headers = ("run", "scenario", "result", "simulated", "wall", "timing", "measurements",
                "artifacts")
@@ -120,7 +152,11 @@ def runs_section(runs: list[RunData]) -> str:
   verdict when it did not complete. Links are relative to this report: keep it in its
   qualification directory.
   Replay a bus log with <code>python -m can.player RUN/bus.log</code>; load traces with
-  <code>hil.record.load_traces</code>.</p>
+  <code>hil.record.load_traces</code>. GNSS epochs (sowing-depth rig): written whole, overrun
+  (written in part: the DUT read a truncated sentence), dropped (none of it written), both
+  because the DUT read its serial port too slowly (EPOCHS LOST), as behind a real receiver's
+  UART, or stopped reading it (PORT NOT READ: nothing got through after the first loss; a
+  DUT that does not use the GNSS); late: the bench itself missed the epoch.</p>
   {table(headers, rows, "runs")}
 </section>"""
 

@@ -7,7 +7,7 @@ CSS = """
 html { -webkit-print-color-adjust: exact; print-color-adjust: exact; }
 body { font-family: system-ui, -apple-system, "Segoe UI", Roboto, "DejaVu Sans", Arial,
        sans-serif; font-size: 14px; line-height: 1.4; color: #1b1f23; margin: 0 auto;
-       padding: 16px 24px 40px; max-width: 1240px; }
+       padding: 16px 24px 40px; max-width: 1400px; }
 h1 { font-size: 24px; margin: 2px 0 10px; }
 h2 { font-size: 18px; margin: 28px 0 8px; padding-bottom: 4px; border-bottom: 2px solid
      var(--line); }
@@ -77,7 +77,7 @@ table.tests td:nth-child(2), table.tests td:nth-child(3) { white-space: nowrap; 
 .b-invalid-bench { background: var(--invalid); }
 .b-skipped, .b-info, .b-no-measurements { background: var(--info); }
 
-.grid { display: grid; grid-template-columns: repeat(auto-fill, minmax(560px, 1fr));
+.grid { display: grid; grid-template-columns: repeat(auto-fill, minmax(640px, 1fr));
         gap: 14px; align-items: start; }
 figure { margin: 0; }
 figure img { max-width: 100%; height: auto; display: block; border: 1px solid var(--line); }

@@ -6,7 +6,15 @@ canopen's wall-clock threads so it works in lockstep:
 
 * heartbeats at the period in 0x1017 (canopen would start a ``send_periodic`` thread);
 * TPDOs on SYNC (transmission types 1-240, every n-th SYNC) and on their event timer (254/255);
-* received RPDOs written into the object dictionary (``set_data``, so write callbacks fire).
+* received RPDOs written into the object dictionary (``set_data``, so write callbacks fire);
+* the error state of CiA 301 (:mod:`hil.rig.canopen_errors`): 0x1001 error register, 0x1003
+  pre-defined error field (if the EDS declares it), EMCY on COB-ID 0x1014 when an error occurs
+  and the error-reset EMCY (code 0x0000) when it goes away, spaced by the inhibit time 0x1015
+  if the EDS declares it. EMCYs go out at the next SYNC or heartbeat/event time after the
+  error, in pre-operational and operational; in stopped they wait until the node leaves it;
+* NMT state rules: PDOs (SYNC, RPDOs, TPDOs) only in operational; SDO in pre-operational and
+  operational; stopped answers NMT only and sends its heartbeat; reset node and reset
+  communication send a boot-up message and go pre-operational (operational with autostart).
 
 Frames canopen wants to send (SDO responses, say) are collected by :class:`OutboxNetwork`, a
 ``canopen.Network`` whose ``send_message`` appends to an outbox instead of touching a bus: the
@@ -23,6 +31,7 @@ import can
 import canopen
 from canopen.pdo.base import PdoMap
 
+from hil.rig.canopen_errors import ABORT_NO_DATA, ABORT_VALUE_RANGE, ErrorState, emcy_payload
 from hil.rig.device import Device
 
 NMT_STATES = {"INITIALISING": 0x00, "STOPPED": 0x04, "OPERATIONAL": 0x05,
@@ -93,6 +102,16 @@ class CanopenDevice(Device):
         self._plans: dict[int, tuple[Any, int, _Plan | None]] = {}
         self.node.nmt.state = "PRE-OPERATIONAL"
         self._reload_pdos()
+        od = self.node.object_dictionary
+        history = 0
+        if 0x1003 in od:
+            history = max((sub for sub in od[0x1003].subindices if sub), default=0)
+        #: the node's errors (0x1001, 0x1003); raise and clear them with raise_error/clear_error
+        self.errors = ErrorState(history_length=history)
+        self._emcy_pending: list[bytes] = []
+        self._emcy_last_s = -math.inf
+        self.node.add_read_callback(self._on_error_object_read)
+        self.node.add_write_callback(self._on_error_object_write)
 
     # --- object dictionary helpers -------------------------------------------------------
     def read(self, index: int, subindex: int = 0) -> Any:
@@ -111,6 +130,79 @@ class CanopenDevice(Device):
         if not isinstance(obj, canopen.objectdictionary.ODVariable):
             obj = obj[subindex]
         self.node.data_store.setdefault(index, {})[subindex] = obj.encode_raw(value)
+
+    # --- errors and EMCY (CiA 301) --------------------------------------------------------
+    def error_register(self) -> int:
+        """Object 0x1001 now (subclasses whose application keeps its own register override)."""
+        return self.errors.register
+
+    def raise_error(self, code: int, bits: int | None = None, info: int = 0) -> None:
+        """Error ``code`` occurred: 0x1001/0x1003 updated and its EMCY queued (once while it
+        stays active)."""
+        event = self.errors.occur(code, bits, info)
+        if event is not None:
+            self._emcy_pending.append(emcy_payload(event[0], self.error_register()))
+
+    def clear_error(self, code: int) -> None:
+        """Error ``code`` went away: the error-reset EMCY (0x0000) is queued."""
+        if self.errors.clear(code) is not None:
+            self._emcy_pending.append(emcy_payload(0, self.error_register()))
+
+    def clear_errors(self) -> None:
+        """Every active error went away (a fault reset): the error-reset EMCY is queued."""
+        if self.errors.clear_all() is not None:
+            self._emcy_pending.append(emcy_payload(0, self.error_register()))
+
+    def update_errors(self) -> None:
+        """Hook: raise and clear errors from the application's state before EMCYs are sent."""
+        return None
+
+    def _emcy_cob_id(self) -> int | None:
+        """COB-ID of EMCY from 0x1014 (None if absent or bit 31 says 'not valid')."""
+        if 0x1014 not in self.node.object_dictionary:
+            return None
+        value = int(self.read(0x1014))
+        return None if value & 0x80000000 else value & 0x7FF
+
+    def _emcy_inhibit_s(self) -> float:
+        if 0x1015 not in self.node.object_dictionary:
+            return 0.0
+        return int(self.read(0x1015)) * 100e-6          # multiples of 100 µs
+
+    def _take_emcy(self, time_s: float) -> list[can.Message]:
+        """The EMCY frames due now: none in stopped (they wait), one per inhibit time."""
+        self.update_errors()
+        if not self._emcy_pending or self.node.nmt.state == "STOPPED":
+            return []
+        cob_id = self._emcy_cob_id()
+        if cob_id is None:
+            self._emcy_pending.clear()
+            return []
+        inhibit = self._emcy_inhibit_s()
+        out: list[can.Message] = []
+        while self._emcy_pending and time_s >= self._emcy_last_s + inhibit - 1e-9:
+            out.append(can.Message(arbitration_id=cob_id, data=self._emcy_pending.pop(0),
+                                   is_extended_id=False))
+            self._emcy_last_s = time_s
+            if inhibit > 0:
+                break
+        return out
+
+    def _on_error_object_read(self, index: int, subindex: int, od: Any) -> int | None:
+        if index == 0x1001:
+            return self.error_register()
+        if index == 0x1003:
+            try:
+                return self.errors.field(subindex)
+            except LookupError as exc:
+                raise canopen.SdoAbortedError(ABORT_NO_DATA) from exc
+        return None
+
+    def _on_error_object_write(self, index: int, subindex: int, od: Any, data: bytes) -> None:
+        if index == 0x1003 and subindex == 0:
+            if od.decode_raw(data) != 0:
+                raise canopen.SdoAbortedError(ABORT_VALUE_RANGE)
+            self.errors.clear_history()
 
     @property
     def operational(self) -> bool:
@@ -145,6 +237,8 @@ class CanopenDevice(Device):
                 due += self._event_period(key)
             self._event_due[key] = due
             candidates.append(due)
+        if self._emcy_pending:
+            candidates.append(max(self._emcy_last_s + self._emcy_inhibit_s(), time_s + 1e-6))
         return min(candidates)
 
     def _event_period(self, key: int) -> float:
@@ -164,6 +258,7 @@ class CanopenDevice(Device):
             period = self.heartbeat_period_s()
             self._heartbeat_due = period if period > 0 else math.inf
             return out
+        out.extend(self._take_emcy(time_s))
         if self._heartbeat_due <= time_s + 1e-9:
             out.append(can.Message(arbitration_id=0x700 + self.node_id,
                                    data=bytes([NMT_STATES.get(self.node.nmt.state, 0x7F)]),
@@ -184,7 +279,7 @@ class CanopenDevice(Device):
             return []
         can_id, data = msg.arbitration_id, bytes(msg.data)
         if can_id == SYNC_ID:
-            return self._on_sync() if self.operational else []
+            return self._on_sync(time_s) if self.operational else []
         if can_id in self._rpdo_by_id:
             if self.operational:
                 rpdo = self._rpdo_by_id[can_id]
@@ -194,14 +289,33 @@ class CanopenDevice(Device):
                 else:
                     self._store_rpdo(rpdo, data)
             return []
+        if can_id != 0x000 and self.node.nmt.state == "STOPPED":
+            return []                 # stopped: only NMT commands are answered (CiA 301)
         before = self.node.nmt.state
         self.network.notify(can_id, data, time_s)
+        if can_id == 0x000 and self.node.nmt.state == "INITIALISING":
+            return self._reset(time_s)
         if can_id == 0x000 and self.node.nmt.state != before:
             self._enter(self.node.nmt.state)
-        return self.network.take()
+        return self.network.take() + self._take_emcy(time_s)
+
+    def _reset(self, time_s: float) -> list[can.Message]:
+        """NMT reset node / reset communication: the boot-up message, then pre-operational
+        (operational with autostart); the heartbeat restarts from now. The application (a
+        drive's state machine) is not reset."""
+        self.network.take()
+        self._pending_sync_rpdos.clear()
+        self._sync_count = 0
+        self._enter("OPERATIONAL" if self.autostart else "PRE-OPERATIONAL")
+        period = self.heartbeat_period_s()
+        self._heartbeat_due = time_s + period if period > 0 else math.inf
+        return [can.Message(arbitration_id=0x700 + self.node_id, data=b"\x00",
+                            is_extended_id=False)]
 
     def _enter(self, state: str) -> None:
         self.node.nmt.state = state
+        if state != "OPERATIONAL":
+            self._pending_sync_rpdos.clear()      # no PDO is processed outside operational
         if state == "OPERATIONAL":
             self._reload_pdos()
             self._event_due = {}
@@ -209,13 +323,13 @@ class CanopenDevice(Device):
                 if tpdo in self._tpdos and (tpdo.trans_type or 0) >= 254 and tpdo.event_timer:
                     self._event_due[key] = 0.0
 
-    def _on_sync(self) -> list[can.Message]:
+    def _on_sync(self, time_s: float) -> list[can.Message]:
         self._sync_count += 1
         pending, self._pending_sync_rpdos = self._pending_sync_rpdos, []
         for rpdo, data in pending:
             self._store_rpdo(rpdo, data)
         self.before_sync()
-        out = self.events()
+        out = self._take_emcy(time_s) + self.events()
         for tpdo in self._tpdos:
             n = tpdo.trans_type or 0
             if 1 <= n <= 240 and self._sync_count % n == 0:
@@ -223,7 +337,7 @@ class CanopenDevice(Device):
         return out
 
     def events(self) -> list[can.Message]:
-        """Hook: event frames (EMCY, say) to send at SYNC ahead of the TPDOs."""
+        """Hook: event frames to send at SYNC ahead of the TPDOs (after the EMCYs)."""
         return []
 
     def before_sync(self) -> None:

@@ -122,13 +122,19 @@ class TerminalDevice(PeriodicDevice):
                                  active_rows=self.rows, counter=self.counter)]
 
 
+#: EMCY error code "life guard error or heartbeat error" (CiA 301)
+HEARTBEAT_ERROR = 0x8130
+
+
 class AnalogOutputModule(CanopenDevice):
     """The C-3402 CAN analog output module (CiA 401): the controller writes the motor command
     to 0x6411 sub 1 (mV) by RPDO; the module drives the motor's 0-10 V speed input.
 
     It consumes the controller's heartbeat (0x1016): when the heartbeat is missing for longer
     than the consumer time, the outputs whose error mode (0x6443) is on go to their error value
-    (0x6444), which is the motor's safe state, until the heartbeat returns."""
+    (0x6444), which is the motor's safe state, until the heartbeat returns. The timeout is
+    error 0x8130 (error register bit 4, communication): an EMCY, an entry in 0x1003; the
+    heartbeat's return sends the error-reset EMCY."""
 
     def __init__(self, node_id: int, eds: str, channel: AnalogOutputChannel,
                  output_sub: int) -> None:
@@ -165,6 +171,11 @@ class AnalogOutputModule(CanopenDevice):
         if error != self.comm_error:
             self.comm_error = error
             self._volts = None
+            # CiA 301: heartbeat consumer timeout is EMCY 0x8130, its end the error reset
+            if error:
+                self.raise_error(HEARTBEAT_ERROR)
+            else:
+                self.clear_error(HEARTBEAT_ERROR)
 
     def output_volts(self) -> float:
         """What the module drives onto the motor's speed input now."""

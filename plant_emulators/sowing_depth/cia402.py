@@ -132,7 +132,8 @@ class Cia402Drive:
     ``canopen.LocalNode``'s read/write callbacks: integers in object-dictionary units) or through
     the typed properties (:attr:`state`, :attr:`statusword`, :attr:`error_code` …). Every object
     the drive owns is in :data:`OBJECTS`; the others (0x1000-0x1A03 communication objects) belong
-    to the CANopen node. Faults also queue EMCY events, collected with :meth:`pop_emcy_events`.
+    to the CANopen node. Faults and fault resets also queue EMCY events, collected with
+    :meth:`pop_emcy_events`.
     """
 
     def __init__(self, config: DriveConfig, cylinder: ServoCylinder) -> None:
@@ -400,7 +401,8 @@ class Cia402Drive:
         self._injected.discard(int(code))
 
     def pop_emcy_events(self) -> list[tuple[int, int]]:
-        """Faults raised since the last call, as (error code, error register) for EMCY."""
+        """Faults raised and reset since the last call, as (error code, error register) for
+        EMCY: a fault as its code and register, a fault reset (transition 15) as (0, 0)."""
         events, self._emcy = self._emcy, []
         return events
 
@@ -432,6 +434,7 @@ class Cia402Drive:
         self._error_code = 0
         self._following_error = False
         self._fe_time_s = 0.0
+        self._emcy.append((0, 0))                 # error reset (CiA 301): no error is left
         self._enter(DriveState.SWITCH_ON_DISABLED)                          # 15
 
     def _enter(self, new: DriveState) -> None:

@@ -17,12 +17,12 @@ from hil.dut import Controller
 from hil.rig.canopen_device import OutboxNetwork
 from plant_emulators.sowing_depth.config import load_rig_config
 from plant_emulators.sowing_depth.frames import (
+    EDS_PATH,
     ControllerStatus,
     DepthSetpoint,
     FrameCodec,
     InclinometerFrame,
 )
-from plant_emulators.sowing_depth.rig import EDS
 from plant_emulators.sowing_depth.sensors import calibration_depth_mm
 
 MODE_PROFILE_VELOCITY = 3
@@ -56,7 +56,7 @@ class PiDepthController(Controller):
         self.node_id = wiring.drive_node_id
         self.codec = FrameCodec()
         self.network = OutboxNetwork()
-        self.drive = canopen.RemoteNode(self.node_id, str(EDS))
+        self.drive = canopen.RemoteNode(self.node_id, str(EDS_PATH))
         self.network.add_node(self.drive)
         self.drive.rpdo.read(from_od=True)
         self.drive.tpdo.read(from_od=True)

@@ -58,11 +58,18 @@ class ServoDriveDevice(CanopenDevice):
             except DriveObjectError as exc:
                 raise canopen.SdoAbortedError(exc.abort_code) from exc
 
-    def events(self) -> list[can.Message]:
-        """EMCY (0x80 + node id) for each error the drive raised since the last SYNC."""
-        return [can.Message(arbitration_id=0x80 + self.node_id, is_extended_id=False,
-                            data=code.to_bytes(2, "little") + bytes([register]) + bytes(5))
-                for code, register in self.drive.pop_emcy_events()]
+    def error_register(self) -> int:
+        """0x1001 as the drive computes it from its present fault (0 once reset)."""
+        return self.drive.error_register
+
+    def update_errors(self) -> None:
+        """The drive's faults since the last call become the node's errors: a fault is raised
+        (EMCY with its code, 0x1003 entry), a fault reset clears them (EMCY 0x0000)."""
+        for code, register in self.drive.pop_emcy_events():
+            if code:
+                self.raise_error(code, register)
+            else:
+                self.clear_errors()
 
 
 class DrawWireDevice(PeriodicDevice):

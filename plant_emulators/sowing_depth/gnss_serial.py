@@ -6,10 +6,26 @@
 passes the next epoch at ``gnss.output_rate_hz``. It owns no thread and no clock: the rig calls
 :meth:`GnssSerialPort.emit` with its time.
 
-Writes never block. A pty buffers about 4 KiB when nobody reads; when it is full the epoch is
-dropped and counted (:attr:`GnssSerialPort.dropped_epochs`), as a UART overruns. A DUT that opens
-the port late first reads what was buffered: call :meth:`PtySerialPort.discard_unread` before
-the DUT starts if that matters.
+Writes never block. A pty buffers about 4 KiB when nobody reads; a DUT that reads too slowly
+loses epochs as it would behind a real receiver's UART, and every epoch is counted
+(:meth:`GnssSerialPort.counts`, which the rig puts in the run record):
+
+* *written*: the whole epoch went onto the line;
+* *overrun*: the buffer filled in the middle of the epoch: part of it is on the line, so the
+  DUT reads a truncated sentence (which the next epoch's first sentence runs into, as after
+  a UART overrun) and must reject it by its checksum;
+* *dropped*: the buffer was full: nothing of the epoch reached the line;
+* *late*: the rig's own loop called too late and the epoch was never produced (the bench's
+  fault, not the DUT's);
+* *unread_bytes*: what is still buffered in the slave's input queue, unread by the DUT, when
+  the run ends;
+* *first_loss_s* and *written_after_loss*: when the first epoch was overrun or dropped, and
+  how many were written whole after it. None written after it means the line was never
+  drained again: the DUT stopped reading (or never read: a DUT that does not use the GNSS);
+  some written after it means the DUT reads, too slowly.
+
+A DUT that opens the port late first reads what was buffered: call
+:meth:`PtySerialPort.discard_unread` before the DUT starts if that matters.
 
 Example
 -------
@@ -34,6 +50,7 @@ import fcntl
 import os
 import termios
 import tty
+from collections.abc import Callable
 from types import TracebackType
 from typing import Protocol
 
@@ -41,6 +58,9 @@ from hil.errors import HilError
 from plant_emulators.sowing_depth.nmea import GnssReceiver
 
 __all__ = ["GnssSerialPort", "Kinematics", "PtySerialPort", "SerialPortError"]
+
+#: a run-record note: (time s, kind, detail)
+Note = Callable[[float, str, str], None]
 
 
 class SerialPortError(HilError, OSError):
@@ -75,18 +95,29 @@ class PtySerialPort:
         self._closed = False
 
     def write(self, data: bytes) -> bool:
-        """Write ``data`` whole, or nothing if the buffer is full; return whether it was written."""
+        """Write as much of ``data`` as the buffer takes; return whether all of it was."""
+        return self.write_some(data) == len(data)
+
+    def write_some(self, data: bytes) -> int:
+        """Write as much of ``data`` as the buffer takes, never blocking; return how many
+        bytes that was (0 when the buffer is full)."""
         if self._closed:
             raise SerialPortError(f"{self.path} is closed")
         try:
-            written = os.write(self._master, data)
+            return os.write(self._master, data)
         except BlockingIOError:
-            return False
+            return 0
         except OSError as exc:
             if exc.errno in (errno.EAGAIN, errno.EIO):
-                return False
+                return 0
             raise SerialPortError(f"{self.path}: write failed: {exc}") from exc
-        return written == len(data)
+
+    def unread_bytes(self) -> int:
+        """Bytes written but not yet read by the DUT (0 once closed)."""
+        if self._closed:
+            return 0
+        buf = fcntl.ioctl(self._slave, termios.FIONREAD, b"\0\0\0\0")
+        return int.from_bytes(buf, "little")
 
     def discard_unread(self) -> None:
         """Throw away what was written but not yet read by the DUT."""
@@ -119,18 +150,30 @@ class GnssSerialPort:
         Where distance and ground speed come from (the plant).
     port : PtySerialPort, optional
         The line to write to (a new pty by default; closed by :meth:`close` either way).
+    note : callable, optional
+        ``note(time_s, kind, detail)`` on the first overrun and the first dropped epoch of
+        the run (the rig's run-record notes), so the report says when the losses began.
     """
 
     def __init__(self, receiver: GnssReceiver, source: Kinematics,
-                 port: PtySerialPort | None = None) -> None:
+                 port: PtySerialPort | None = None, note: Note | None = None) -> None:
         self.receiver = receiver
         self.source = source
         self.port = PtySerialPort() if port is None else port
         self._period_s = 1.0 / receiver.config.output_rate_hz
         self._next_epoch = 0
+        self.note = note
+        #: epochs written whole
         self.sent_epochs = 0
+        #: epochs of which nothing was written (the buffer was full)
         self.dropped_epochs = 0
+        #: epochs written in part (the buffer filled during the epoch)
+        self.overrun_epochs = 0
+        #: epochs never produced because the caller was late
         self.skipped_epochs = 0
+        #: time of the first overrun or dropped epoch, and epochs written whole after it
+        self.first_loss_s: float | None = None
+        self.written_after_loss = 0
 
     @property
     def path(self) -> str:
@@ -154,11 +197,37 @@ class GnssSerialPort:
         self._next_epoch = latest + 1
         src = self.source
         sentences = self.receiver.epoch(epoch_time, src.distance_m, src.ground_speed_mps)
-        if self.port.write("".join(sentences).encode("ascii")):
+        data = "".join(sentences).encode("ascii")
+        written = self.port.write_some(data)
+        if written == len(data):
             self.sent_epochs += 1
+            if self.first_loss_s is not None:
+                self.written_after_loss += 1
             return len(sentences)
-        self.dropped_epochs += 1
+        if self.first_loss_s is None:
+            self.first_loss_s = epoch_time
+        if written:
+            self.overrun_epochs += 1
+            if self.overrun_epochs == 1 and self.note is not None:
+                self.note(time_s, "gnss-overrun", f"GNSS serial buffer full during the epoch "
+                          f"of {epoch_time:.1f} s: {written} of {len(data)} bytes written "
+                          f"(the DUT reads its serial port too slowly)")
+        else:
+            self.dropped_epochs += 1
+            if self.dropped_epochs == 1 and self.note is not None:
+                self.note(time_s, "gnss-dropped", f"GNSS epoch of {epoch_time:.1f} s dropped: "
+                          f"serial buffer full (the DUT reads its serial port too slowly)")
         return 0
+
+    def counts(self) -> dict[str, int | float | None]:
+        """Epochs written, overrun, dropped and late, the bytes left unread, when losses
+        began and how many epochs got through after that (see the module docstring)."""
+        return {"written": self.sent_epochs, "overrun": self.overrun_epochs,
+                "dropped": self.dropped_epochs, "late": self.skipped_epochs,
+                "unread_bytes": self.port.unread_bytes(),
+                "first_loss_s": None if self.first_loss_s is None
+                else round(self.first_loss_s, 3),
+                "written_after_loss": self.written_after_loss}
 
     def close(self) -> None:
         """Close the pseudo-terminal."""

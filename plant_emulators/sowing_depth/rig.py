@@ -13,6 +13,7 @@ from hil.errors import ConfigError
 from hil.rig import Rig, RigContext
 from plant_emulators.sowing_depth.cia402_objects import ErrorCode
 from plant_emulators.sowing_depth.config import SowingDepthRigConfig, load_rig_config
+from plant_emulators.sowing_depth.controllers import PiDepthController
 from plant_emulators.sowing_depth.devices import (
     DrawWireDevice,
     GnssDevice,
@@ -21,7 +22,7 @@ from plant_emulators.sowing_depth.devices import (
     TerminalDevice,
     TractorSpeedDevice,
 )
-from plant_emulators.sowing_depth.frames import FrameCodec
+from plant_emulators.sowing_depth.frames import EDS_PATH, FrameCodec
 from plant_emulators.sowing_depth.gnss_serial import GnssSerialPort
 from plant_emulators.sowing_depth.nmea import GnssReceiver
 from plant_emulators.sowing_depth.physics import SowingDepthPlant
@@ -31,7 +32,8 @@ from plant_emulators.sowing_depth.sensors import (
     calibration_depth_mm,
 )
 
-EDS = Path(__file__).parent / "db" / "servo_cylinder_cia402.eds"
+#: The drive's EDS (defined in ``frames``; kept here under its old name for callers)
+EDS = EDS_PATH
 #: GB/T 20865-2007: for a target of 30 mm or more the qualified band is target ± 10 mm
 QUALIFIED_BAND_MM = 10.0
 
@@ -86,7 +88,7 @@ class SowingDepthRig(Rig):
         self.inclinometer = Inclinometer(cfg.inclinometer, incl_rng)
         self.draw_wire = DrawWireSensor(cfg.draw_wire, wire_rng)
         self.receiver = GnssReceiver(cfg.gnss, gnss_rng)
-        self.gnss = GnssSerialPort(self.receiver, self.plant)
+        self.gnss = GnssSerialPort(self.receiver, self.plant, note=ctx.note)
         self.drive = ServoDriveDevice(self.plant, wiring.drive_node_id, str(EDS))
         self.terminal = TerminalDevice(self.codec, wiring.depth_setpoint_period_ms / 1000.0)
         self.incl_device = InclinometerDevice(self.plant, self.inclinometer, self.codec,
@@ -206,18 +208,22 @@ class SowingDepthRig(Rig):
         return self._final_truth
 
     def truth(self) -> dict[str, object]:
-        """Seed depth over every truth cell (not yet sampled as [D] samples: the suites do)."""
+        """Seed depth over every truth cell (not yet sampled as [D] samples: the suites do),
+        and what reached the DUT of the GNSS receiver's output (``gnss_epochs``)."""
         cells = self.truth_arrays()
         depth = cells["depth_mm"]
+        # the GNSS serial line's epochs: written, overrun, dropped, late, unread bytes
+        gnss = {"gnss_epochs": self.gnss.counts()}
         if depth.size == 0:
-            return {"cells": 0}
+            return {"cells": 0, **gnss}
         target = self.terminal.target_depth_mm
         inside = np.abs(depth - target) <= QUALIFIED_BAND_MM
         return {"cells": int(depth.shape[0]), "rows": int(depth.shape[1]),
                 "distance_m": float(cells["distance_m"][-1]),
                 "mean_depth_mm": float(depth.mean()), "sd_mm": float(depth.std(ddof=1)),
                 "pass_rate_pct": float(100.0 * inside.mean()),
-                "outlier_fraction_pct": float(100.0 * (cells["outlier_kind"] > 0).mean())}
+                "outlier_fraction_pct": float(100.0 * (cells["outlier_kind"] > 0).mean()),
+                **gnss}
 
     def dut_environment(self) -> dict[str, str]:
         return {"AGRIHIL_GNSS_PORT": self.gnss.path}
@@ -231,5 +237,4 @@ class SowingDepthRig(Rig):
 
     @classmethod
     def builtin_controllers(cls) -> dict[str, Callable[[], object]]:
-        from plant_emulators.sowing_depth.controllers import PiDepthController
         return {"pi": PiDepthController}

@@ -458,6 +458,9 @@ def test_following_error_faults_the_drive_and_reset_clears_it_when_gone() -> Non
     cw(drive, 0x00, 0x80)
     assert drive.state is S.SWITCH_ON_DISABLED
     assert not drive.statusword & 0x2000
+    # the fault reset is an EMCY event too: error code 0x0000, nothing left in 0x1001 (CiA 301)
+    assert drive.pop_emcy_events() == [(0x0000, 0x00)]
+    assert drive.error_register == 0
     cw(drive, 0x06, 0x07, 0x0F)
     move(drive, 50.0)
     run_until_target_reached(drive)

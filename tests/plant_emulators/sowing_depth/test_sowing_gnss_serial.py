@@ -73,3 +73,58 @@ def test_closed_port_refuses_writes() -> None:
     port.close()
     with pytest.raises(SerialPortError, match="closed"):
         port.write(b"$")
+
+
+def test_every_epoch_is_counted_written_overrun_dropped_or_late() -> None:
+    notes: list[tuple[float, str, str]] = []
+    gnss = GnssSerialPort(GnssReceiver(load_rig_config().gnss, np.random.default_rng(0)),
+                          Cart(), note=lambda t, kind, detail: notes.append((t, kind, detail)))
+    try:
+        for k in range(3000):                       # nobody reads: the buffer fills
+            gnss.emit(k * 0.1)
+        gnss.emit(300.15)                           # one epoch late (300.0 skipped)
+        counts = gnss.counts()
+    finally:
+        gnss.close()
+    assert counts["written"] > 0 and counts["dropped"] > 0
+    assert counts["late"] == 1
+    assert counts["written"] + counts["overrun"] + counts["dropped"] + counts["late"] == 3002
+    assert 0 < counts["unread_bytes"] <= 4096 * 4
+    assert counts["written_after_loss"] == 0        # nobody read the port
+    assert 0 < counts["first_loss_s"] < 300
+    kinds = [kind for _, kind, _ in notes]
+    assert kinds.count("gnss-dropped") == 1 and kinds.count("gnss-overrun") <= 1
+    assert all("too slowly" in detail for _, _, detail in notes)
+
+
+def test_a_partly_written_epoch_is_an_overrun(gnss: GnssSerialPort) -> None:
+    class HalfFull(PtySerialPort):
+        def write_some(self, data: bytes) -> int:
+            return len(data) // 2
+
+    gnss.port.close()
+    gnss.port = HalfFull()
+    gnss.emit(0.0)
+    assert (gnss.sent_epochs, gnss.overrun_epochs, gnss.dropped_epochs) == (0, 1, 0)
+
+
+def test_a_reading_dut_loses_nothing(gnss: GnssSerialPort) -> None:
+    with serial.Serial(gnss.path, timeout=1.0) as dut:
+        for k in range(50):
+            gnss.emit(k * 0.1)
+            for _ in range(3):
+                dut.readline()
+        counts = gnss.counts()
+    assert counts == {"written": 50, "overrun": 0, "dropped": 0, "late": 0,
+                      "unread_bytes": 0, "first_loss_s": None, "written_after_loss": 0}
+
+
+def test_a_slow_reader_gets_epochs_through_after_the_first_loss(gnss: GnssSerialPort) -> None:
+    with serial.Serial(gnss.path, timeout=0.5) as dut:
+        for k in range(400):
+            gnss.emit(k * 0.1)
+            if k % 40 == 39:                         # reads a little, rarely
+                dut.read(4096)
+        counts = gnss.counts()
+    assert counts["dropped"] + counts["overrun"] > 0
+    assert counts["written_after_loss"] > 0
