@@ -123,6 +123,146 @@ static uint64_t cantools_unsigned_from_double(double value)
     return (uint64_t)value;
 }
 
+int sowing_depth_nmt_pack(
+    uint8_t *dst_p,
+    const struct sowing_depth_nmt_t *src_p,
+    size_t size)
+{
+    if (size < 2u) {
+        return (-EINVAL);
+    }
+
+    memset(&dst_p[0], 0, 2);
+
+    dst_p[0] |= pack_left_shift_u8(src_p->nmt_command, 0u, 0xffu);
+    dst_p[1] |= pack_left_shift_u8(src_p->nmt_target_node, 0u, 0xffu);
+
+    return (2);
+}
+
+int sowing_depth_nmt_unpack(
+    struct sowing_depth_nmt_t *dst_p,
+    const uint8_t *src_p,
+    size_t size)
+{
+    if (size < 2u) {
+        return (-EINVAL);
+    }
+
+    dst_p->nmt_command = unpack_right_shift_u8(src_p[0], 0u, 0xffu);
+    dst_p->nmt_target_node = unpack_right_shift_u8(src_p[1], 0u, 0xffu);
+
+    return (0);
+}
+
+int sowing_depth_nmt_init(struct sowing_depth_nmt_t *msg_p)
+{
+    if (msg_p == NULL) return -1;
+
+    memset(msg_p, 0, sizeof(struct sowing_depth_nmt_t));
+
+    return 0;
+}
+
+uint8_t sowing_depth_nmt_nmt_command_encode(double value)
+{
+    return (uint8_t)(cantools_unsigned_from_double(round(value)));
+}
+
+double sowing_depth_nmt_nmt_command_decode(uint8_t value)
+{
+    return ((double)value);
+}
+
+bool sowing_depth_nmt_nmt_command_is_in_range(uint8_t value)
+{
+    return ((value >= 1u) && (value <= 130u));
+}
+
+bool sowing_depth_nmt_nmt_command_is_in_phys_range(double value)
+{
+    return ((value >= 1.0) && (value <= 130.0));
+}
+
+uint8_t sowing_depth_nmt_nmt_target_node_encode(double value)
+{
+    return (uint8_t)(cantools_unsigned_from_double(round(value)));
+}
+
+double sowing_depth_nmt_nmt_target_node_decode(uint8_t value)
+{
+    return ((double)value);
+}
+
+bool sowing_depth_nmt_nmt_target_node_is_in_range(uint8_t value)
+{
+    return (value <= 127u);
+}
+
+bool sowing_depth_nmt_nmt_target_node_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 127.0));
+}
+
+int sowing_depth_depth_controller_heartbeat_pack(
+    uint8_t *dst_p,
+    const struct sowing_depth_depth_controller_heartbeat_t *src_p,
+    size_t size)
+{
+    if (size < 1u) {
+        return (-EINVAL);
+    }
+
+    memset(&dst_p[0], 0, 1);
+
+    dst_p[0] |= pack_left_shift_u8(src_p->nmt_state, 0u, 0xffu);
+
+    return (1);
+}
+
+int sowing_depth_depth_controller_heartbeat_unpack(
+    struct sowing_depth_depth_controller_heartbeat_t *dst_p,
+    const uint8_t *src_p,
+    size_t size)
+{
+    if (size < 1u) {
+        return (-EINVAL);
+    }
+
+    dst_p->nmt_state = unpack_right_shift_u8(src_p[0], 0u, 0xffu);
+
+    return (0);
+}
+
+int sowing_depth_depth_controller_heartbeat_init(struct sowing_depth_depth_controller_heartbeat_t *msg_p)
+{
+    if (msg_p == NULL) return -1;
+
+    memset(msg_p, 0, sizeof(struct sowing_depth_depth_controller_heartbeat_t));
+
+    return 0;
+}
+
+uint8_t sowing_depth_depth_controller_heartbeat_nmt_state_encode(double value)
+{
+    return (uint8_t)(cantools_unsigned_from_double(round(value)));
+}
+
+double sowing_depth_depth_controller_heartbeat_nmt_state_decode(uint8_t value)
+{
+    return ((double)value);
+}
+
+bool sowing_depth_depth_controller_heartbeat_nmt_state_is_in_range(uint8_t value)
+{
+    return (value <= 127u);
+}
+
+bool sowing_depth_depth_controller_heartbeat_nmt_state_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 127.0));
+}
+
 int sowing_depth_gbsd_pack(
     uint8_t *dst_p,
     const struct sowing_depth_gbsd_t *src_p,
