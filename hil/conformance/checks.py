@@ -81,7 +81,8 @@ def cycle_stats(gaps_s: np.ndarray, declared_ms: float, low_pct: float, high_pct
     hi = declared_ms * (1 + high_pct / 100.0) + resolution_ms + 1e-6
     outside = int(np.count_nonzero((ms < lo) | (ms > hi)))
     return CycleStats(int(ms.size), median, float(ms.min()), float(ms.max()), outside,
-                      100.0 * outside / ms.size, 100.0 * (median - declared_ms) / declared_ms)
+                      100.0 * outside / ms.size,
+                      round(100.0 * (median - declared_ms) / declared_ms, 9))
 
 
 def total_bits(log: FrameLog) -> int:

@@ -317,7 +317,8 @@ def _heartbeat(add: _Sink, contract: BusContract, time_s: np.ndarray, segment: n
                resolution_ms: float, node: dict[str, Any]) -> dict[str, Any]:
     declared = contract.heartbeat_period_ms
     gaps = checks.intervals(time_s, segment)
-    out: dict[str, Any] = {"declared_ms": declared, "frames": int(time_s.size)}
+    out: dict[str, Any] = {"id": f"0x{contract.heartbeat_id:03X}", "declared_ms": declared,
+                           "frames": int(time_s.size)}
     band = _band(add.limits("bus.heartbeat.period"), HEARTBEAT_TOLERANCE_PCT)
     stats = checks.cycle_stats(gaps, declared, band[0], band[1], resolution_ms)
     m = add("bus.heartbeat.period", stats.deviation_pct, dict(node),

@@ -9,6 +9,7 @@ from hil import __version__
 from hil.report.markup import esc
 from hil.report.record import QualRecord, ReportError, load_qualification
 from hil.report.rundata import RunData, load_runs
+from hil.report.sections_conformance import conformance_section
 from hil.report.sections_head import VERDICT_WORDS, header, identity_section, verdict_section
 from hil.report.sections_plots import condition_section, run_plot_sections, timing_section
 from hil.report.sections_tables import (
@@ -22,7 +23,8 @@ from hil.report.style import CSS
 REPORT_NAME = "report.html"
 
 _NAV = (("verdict", "Verdict"), ("identity", "Device and bench"),
-        ("measurements", "Measurements"), ("plots-step", "Step responses"),
+        ("measurements", "Measurements"), ("conformance", "Bus conformance"),
+        ("plots-step", "Step responses"),
         ("plots-field", "Field runs"), ("per-condition", "Per condition"),
         ("plots-other", "Other runs"), ("timing", "Timing"), ("runs", "Runs"),
         ("tests", "Tests"), ("errors", "Errors"))
@@ -40,6 +42,7 @@ def render(qual: QualRecord, runs: list[RunData]) -> str:
         "verdict": verdict_section(qual, runs, has_errors=bool(errors)),
         "identity": identity_section(qual),
         "measurements": measurements_section(qual, runs),
+        "conformance": conformance_section(qual, runs),
         "plots-step": plots.get("step", ""),
         "plots-field": plots.get("field", ""),
         "per-condition": condition_section(qual),
