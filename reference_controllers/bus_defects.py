@@ -2,7 +2,7 @@
 
 Each defect is a plausible firmware bug on the bus that leaves the control law alone, so the
 DUT passes the control suites and must fail its bus conformance
-(``dut_profiles/must_fail/*-bus-*-daemon.toml``; ``tests/hil/conformance/``). Defects
+(``dut_profiles/must_fail/bus/*-bus-*-daemon.toml``; ``tests/hil/conformance/``). Defects
 (``--defect KIND[:ARG]``):
 
 * ``command-twice`` — every command frame goes out twice per control period (the PDO is

@@ -1,6 +1,6 @@
 """Bus conformance discriminates: the reference controllers (daemon and firmware, both rigs)
 pass every conformance measurement, in lockstep and in real time, and each must-fail bus
-profile (``dut_profiles/must_fail/*-bus-*-daemon.toml``) fails exactly the measurement its
+profile (``dut_profiles/must_fail/bus/*-bus-*-daemon.toml``) fails exactly the measurement its
 defect breaks while its control law (the reference's) passes the control suites.
 
 The default run uses short scenarios (a few simulated seconds each, with a DUT restart for
@@ -30,6 +30,9 @@ from hil.rig.scenario import Event, Scenario
 
 ROOT = Path(__file__).resolve().parents[3]
 PROFILES = ROOT / "dut_profiles"
+#: beside the suites' must-fail profiles, whose tests check that every profile of must_fail/
+#: is theirs
+BUS = PROFILES / "must_fail" / "bus"
 REFERENCES = ["fertilizer-piecewise-pid-daemon", "fertilizer-piecewise-pid-firmware",
               "sowing-depth-fuzzy-pid-daemon", "sowing-depth-fuzzy-pid-firmware"]
 #: must-fail profile → the conformance measurements its defect must fail (and no other)
@@ -87,10 +90,10 @@ def _failing(measurements: list[Measurement]) -> set[str]:
 
 
 def test_every_bus_profile_is_covered() -> None:
-    found = sorted(p.stem for p in (PROFILES / "must_fail").glob("*-bus-*-daemon.toml"))
+    found = sorted(p.stem for p in BUS.glob("*-bus-*-daemon.toml"))
     assert found == sorted(EXPECTED)
     for name in found:
-        profile = load_profile(PROFILES / "must_fail" / f"{name}.toml")
+        profile = load_profile(BUS / f"{name}.toml")
         reference = load_profile(PROFILES / f"{name.split('-bus-')[0]}-"
                                  f"{'piecewise-pid' if name.startswith('fert') else 'fuzzy-pid'}"
                                  "-daemon.toml")
@@ -100,7 +103,7 @@ def test_every_bus_profile_is_covered() -> None:
 
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_a_bus_defect_fails_its_measurement(name: str, tmp_path: Path) -> None:
-    record, measurements = _lockstep_run(name, PROFILES / "must_fail", tmp_path, "inline")
+    record, measurements = _lockstep_run(name, BUS, tmp_path, "inline")
     assert record["verdict"] != "error", record["error"]
     side = SIDE_EFFECTS.get(name.split("-bus-")[1].removesuffix("-daemon"), set())
     assert EXPECTED[name] <= _failing(measurements) <= EXPECTED[name] | side, [
@@ -172,7 +175,7 @@ def test_a_bus_defect_passes_the_control_suites(name: str, tmp_path: Path) -> No
     """The step suites in ``hil qualify``: every control measurement passes, the qualification
     fails on the defect's conformance measurement alone."""
     selection = "flow_step" if name.startswith("fertilizer") else "depth_step"
-    record = _qualify(PROFILES / "must_fail" / f"{name}.toml", tmp_path / "q", selection)
+    record = _qualify(BUS / f"{name}.toml", tmp_path / "q", selection)
     control = [m for m in record["measurements"] if not m["name"].startswith("bus.")]
     assert control and all(m["outcome"] in ("pass", "info") for m in control), control
     failing = {m["name"] for m in record["measurements"] if m["outcome"] in ("fail", "error")}
