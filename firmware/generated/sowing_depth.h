@@ -45,8 +45,6 @@ extern "C" {
 #endif
 
 /* Frame ids. */
-#define SOWING_DEPTH_NMT_FRAME_ID (0x00u)
-#define SOWING_DEPTH_DEPTH_CONTROLLER_HEARTBEAT_FRAME_ID (0x701u)
 #define SOWING_DEPTH_GBSD_FRAME_ID (0xcfe49f0u)
 #define SOWING_DEPTH_DRAW_WIRE_FRAME_ID (0xcff10a0u)
 #define SOWING_DEPTH_INCLINOMETER_FRAME_ID (0xcff11a1u)
@@ -54,8 +52,6 @@ extern "C" {
 #define SOWING_DEPTH_DEPTH_CONTROLLER_STATUS_FRAME_ID (0x18ff3080u)
 
 /* Frame lengths in bytes. */
-#define SOWING_DEPTH_NMT_LENGTH (2u)
-#define SOWING_DEPTH_DEPTH_CONTROLLER_HEARTBEAT_LENGTH (1u)
 #define SOWING_DEPTH_GBSD_LENGTH (8u)
 #define SOWING_DEPTH_DRAW_WIRE_LENGTH (8u)
 #define SOWING_DEPTH_INCLINOMETER_LENGTH (8u)
@@ -63,8 +59,6 @@ extern "C" {
 #define SOWING_DEPTH_DEPTH_CONTROLLER_STATUS_LENGTH (8u)
 
 /* Extended or standard frame types. */
-#define SOWING_DEPTH_NMT_IS_EXTENDED (0)
-#define SOWING_DEPTH_DEPTH_CONTROLLER_HEARTBEAT_IS_EXTENDED (0)
 #define SOWING_DEPTH_GBSD_IS_EXTENDED (1)
 #define SOWING_DEPTH_DRAW_WIRE_IS_EXTENDED (1)
 #define SOWING_DEPTH_INCLINOMETER_IS_EXTENDED (1)
@@ -72,7 +66,6 @@ extern "C" {
 #define SOWING_DEPTH_DEPTH_CONTROLLER_STATUS_IS_EXTENDED (1)
 
 /* Frame cycle times in milliseconds. */
-#define SOWING_DEPTH_DEPTH_CONTROLLER_HEARTBEAT_CYCLE_TIME_MS (100u)
 #define SOWING_DEPTH_GBSD_CYCLE_TIME_MS (100u)
 #define SOWING_DEPTH_DRAW_WIRE_CYCLE_TIME_MS (10u)
 #define SOWING_DEPTH_INCLINOMETER_CYCLE_TIME_MS (10u)
@@ -80,17 +73,6 @@ extern "C" {
 #define SOWING_DEPTH_DEPTH_CONTROLLER_STATUS_CYCLE_TIME_MS (100u)
 
 /* Signal choices. */
-#define SOWING_DEPTH_NMT_NMT_COMMAND_START_REMOTE_NODE_CHOICE (1u)
-#define SOWING_DEPTH_NMT_NMT_COMMAND_STOP_REMOTE_NODE_CHOICE (2u)
-#define SOWING_DEPTH_NMT_NMT_COMMAND_ENTER_PRE_OPERATIONAL_CHOICE (128u)
-#define SOWING_DEPTH_NMT_NMT_COMMAND_RESET_NODE_CHOICE (129u)
-#define SOWING_DEPTH_NMT_NMT_COMMAND_RESET_COMMUNICATION_CHOICE (130u)
-
-#define SOWING_DEPTH_DEPTH_CONTROLLER_HEARTBEAT_NMT_STATE_BOOT_UP_CHOICE (0u)
-#define SOWING_DEPTH_DEPTH_CONTROLLER_HEARTBEAT_NMT_STATE_STOPPED_CHOICE (4u)
-#define SOWING_DEPTH_DEPTH_CONTROLLER_HEARTBEAT_NMT_STATE_OPERATIONAL_CHOICE (5u)
-#define SOWING_DEPTH_DEPTH_CONTROLLER_HEARTBEAT_NMT_STATE_PRE_OPERATIONAL_CHOICE (127u)
-
 #define SOWING_DEPTH_GBSD_GBSD_DIRECTION_REVERSE_CHOICE (0u)
 #define SOWING_DEPTH_GBSD_GBSD_DIRECTION_FORWARD_CHOICE (1u)
 #define SOWING_DEPTH_GBSD_GBSD_DIRECTION_ERROR_CHOICE (2u)
@@ -129,8 +111,6 @@ extern "C" {
 #define SOWING_DEPTH_DEPTH_CONTROLLER_STATUS_DC_STATE_NOT_AVAILABLE_CHOICE (15u)
 
 /* Frame Names. */
-#define SOWING_DEPTH_NMT_NAME "NMT"
-#define SOWING_DEPTH_DEPTH_CONTROLLER_HEARTBEAT_NAME "DepthControllerHeartbeat"
 #define SOWING_DEPTH_GBSD_NAME "GBSD"
 #define SOWING_DEPTH_DRAW_WIRE_NAME "DrawWire"
 #define SOWING_DEPTH_INCLINOMETER_NAME "Inclinometer"
@@ -138,9 +118,6 @@ extern "C" {
 #define SOWING_DEPTH_DEPTH_CONTROLLER_STATUS_NAME "DepthControllerStatus"
 
 /* Signal Names. */
-#define SOWING_DEPTH_NMT_NMT_COMMAND_NAME "NmtCommand"
-#define SOWING_DEPTH_NMT_NMT_TARGET_NODE_NAME "NmtTargetNode"
-#define SOWING_DEPTH_DEPTH_CONTROLLER_HEARTBEAT_NMT_STATE_NAME "NmtState"
 #define SOWING_DEPTH_GBSD_GBSD_GROUND_SPEED_NAME "GBSD_GroundSpeed"
 #define SOWING_DEPTH_GBSD_GBSD_GROUND_DISTANCE_NAME "GBSD_GroundDistance"
 #define SOWING_DEPTH_GBSD_GBSD_DIRECTION_NAME "GBSD_Direction"
@@ -164,49 +141,6 @@ extern "C" {
 #define SOWING_DEPTH_DEPTH_CONTROLLER_STATUS_DC_DRIVE_FAULT_NAME "DC_DriveFault"
 #define SOWING_DEPTH_DEPTH_CONTROLLER_STATUS_DC_SPEED_LOST_NAME "DC_SpeedLost"
 #define SOWING_DEPTH_DEPTH_CONTROLLER_STATUS_DC_COUNTER_NAME "DC_Counter"
-
-/**
- * Signals in message NMT.
- *
- * CANopen NMT command (COB-ID 0x000): the depth controller is the NMT master of the servo drive (start remote node when its heartbeat shows it is not Operational).
- *
- * All signal values are as on the CAN bus.
- */
-struct sowing_depth_nmt_t {
-    /**
-     * NMT command specifier.
-     *
-     * Range: 1..130 (1..130 -)
-     * Scale: 1
-     * Offset: 0
-     */
-    uint8_t nmt_command;
-
-    /**
-     * Addressed node id; 0 = all nodes.
-     *
-     * Range: 0..127 (0..127 -)
-     * Scale: 1
-     * Offset: 0
-     */
-    uint8_t nmt_target_node;
-};
-
-/**
- * Signals in message DepthControllerHeartbeat.
- *
- * CANopen boot-up and heartbeat of the depth controller (0x700 + node 1, 11-bit), every 100 ms (the DUT profile's timing.heartbeat_period_ms).
- *
- * All signal values are as on the CAN bus.
- */
-struct sowing_depth_depth_controller_heartbeat_t {
-    /**
-     * Range: 0..127 (0..127 -)
-     * Scale: 1
-     * Offset: 0
-     */
-    uint8_t nmt_state;
-};
 
 /**
  * Signals in message GBSD.
@@ -459,200 +393,6 @@ struct sowing_depth_depth_controller_status_t {
      */
     uint8_t dc_counter;
 };
-
-/**
- * Pack message NMT.
- *
- * @param[out] dst_p Buffer to pack the message into.
- * @param[in] src_p Data to pack.
- * @param[in] size Size of dst_p.
- *
- * @return Size of packed data, or negative error code.
- */
-int sowing_depth_nmt_pack(
-    uint8_t *dst_p,
-    const struct sowing_depth_nmt_t *src_p,
-    size_t size);
-
-/**
- * Unpack message NMT.
- *
- * @param[out] dst_p Object to unpack the message into.
- * @param[in] src_p Message to unpack.
- * @param[in] size Size of src_p.
- *
- * @return zero(0) or negative error code.
- */
-int sowing_depth_nmt_unpack(
-    struct sowing_depth_nmt_t *dst_p,
-    const uint8_t *src_p,
-    size_t size);
-
-/**
- * Init message fields to default values from NMT.
- *
- * @param[in] msg_p Message to init.
- *
- * @return zero(0) on success or (-1) in case of nullptr argument.
- */
-int sowing_depth_nmt_init(struct sowing_depth_nmt_t *msg_p);
-
-/**
- * Encode given signal by applying scaling and offset.
- *
- * @param[in] value Signal to encode.
- *
- * @return Encoded signal.
- */
-uint8_t sowing_depth_nmt_nmt_command_encode(double value);
-
-/**
- * Decode given signal by applying scaling and offset.
- *
- * @param[in] value Signal to decode.
- *
- * @return Decoded signal.
- */
-double sowing_depth_nmt_nmt_command_decode(uint8_t value);
-
-/**
- * Check that given signal is in allowed range.
- *
- * @param[in] value Signal to check.
- *
- * @return true if in range, false otherwise.
- */
-bool sowing_depth_nmt_nmt_command_is_in_range(uint8_t value);
-
-/**
- * Check that given physical value is in allowed range before encoding.
- *
- * Use this BEFORE calling _encode() to avoid silent integer overflow:
- *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
- *   is_in_phys_range(-1.0) correctly returns false.
- *
- * @param[in] value Physical signal value to check.
- *
- * @return true if in range, false otherwise.
- */
-bool sowing_depth_nmt_nmt_command_is_in_phys_range(double value);
-
-/**
- * Encode given signal by applying scaling and offset.
- *
- * @param[in] value Signal to encode.
- *
- * @return Encoded signal.
- */
-uint8_t sowing_depth_nmt_nmt_target_node_encode(double value);
-
-/**
- * Decode given signal by applying scaling and offset.
- *
- * @param[in] value Signal to decode.
- *
- * @return Decoded signal.
- */
-double sowing_depth_nmt_nmt_target_node_decode(uint8_t value);
-
-/**
- * Check that given signal is in allowed range.
- *
- * @param[in] value Signal to check.
- *
- * @return true if in range, false otherwise.
- */
-bool sowing_depth_nmt_nmt_target_node_is_in_range(uint8_t value);
-
-/**
- * Check that given physical value is in allowed range before encoding.
- *
- * Use this BEFORE calling _encode() to avoid silent integer overflow:
- *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
- *   is_in_phys_range(-1.0) correctly returns false.
- *
- * @param[in] value Physical signal value to check.
- *
- * @return true if in range, false otherwise.
- */
-bool sowing_depth_nmt_nmt_target_node_is_in_phys_range(double value);
-
-/**
- * Pack message DepthControllerHeartbeat.
- *
- * @param[out] dst_p Buffer to pack the message into.
- * @param[in] src_p Data to pack.
- * @param[in] size Size of dst_p.
- *
- * @return Size of packed data, or negative error code.
- */
-int sowing_depth_depth_controller_heartbeat_pack(
-    uint8_t *dst_p,
-    const struct sowing_depth_depth_controller_heartbeat_t *src_p,
-    size_t size);
-
-/**
- * Unpack message DepthControllerHeartbeat.
- *
- * @param[out] dst_p Object to unpack the message into.
- * @param[in] src_p Message to unpack.
- * @param[in] size Size of src_p.
- *
- * @return zero(0) or negative error code.
- */
-int sowing_depth_depth_controller_heartbeat_unpack(
-    struct sowing_depth_depth_controller_heartbeat_t *dst_p,
-    const uint8_t *src_p,
-    size_t size);
-
-/**
- * Init message fields to default values from DepthControllerHeartbeat.
- *
- * @param[in] msg_p Message to init.
- *
- * @return zero(0) on success or (-1) in case of nullptr argument.
- */
-int sowing_depth_depth_controller_heartbeat_init(struct sowing_depth_depth_controller_heartbeat_t *msg_p);
-
-/**
- * Encode given signal by applying scaling and offset.
- *
- * @param[in] value Signal to encode.
- *
- * @return Encoded signal.
- */
-uint8_t sowing_depth_depth_controller_heartbeat_nmt_state_encode(double value);
-
-/**
- * Decode given signal by applying scaling and offset.
- *
- * @param[in] value Signal to decode.
- *
- * @return Decoded signal.
- */
-double sowing_depth_depth_controller_heartbeat_nmt_state_decode(uint8_t value);
-
-/**
- * Check that given signal is in allowed range.
- *
- * @param[in] value Signal to check.
- *
- * @return true if in range, false otherwise.
- */
-bool sowing_depth_depth_controller_heartbeat_nmt_state_is_in_range(uint8_t value);
-
-/**
- * Check that given physical value is in allowed range before encoding.
- *
- * Use this BEFORE calling _encode() to avoid silent integer overflow:
- *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
- *   is_in_phys_range(-1.0) correctly returns false.
- *
- * @param[in] value Physical signal value to check.
- *
- * @return true if in range, false otherwise.
- */
-bool sowing_depth_depth_controller_heartbeat_nmt_state_is_in_phys_range(double value);
 
 /**
  * Pack message GBSD.

@@ -7,7 +7,8 @@ Declared frames of the DUT (node id ``n`` from the profile's wiring):
 * its CANopen services (CiA 301): boot-up and heartbeat 0x700 + n, EMCY 0x080 + n, SDO
   answers 0x580 + n;
 * towards each CANopen node the rig plays (its EDS, through canopen): the node's RPDOs (length
-  of their mapping) and SDO requests 0x600 + node;
+  of their mapping) and SDO requests 0x600 + node; NMT commands (0x000) where the rig makes the
+  DUT the nodes' NMT master;
 * the frames it sends on SYNC (the profile's ``wiring.command_ids``, else the rig's) are
   cyclic at the profile's control period, whatever the DBC says.
 
@@ -189,6 +190,9 @@ def build_contract(rig: RigBus, *, node_id: int, heartbeat_period_ms: float,
                               ("SDO answer", 0x580 + node_id, 8)):
         frames.setdefault((can_id, False), DeclaredFrame(name, can_id, False, dlc, None,
                                                          "CiA 301"))
+    if rig.dut_is_nmt_master and rig.canopen_nodes:
+        frames.setdefault((0x000, False), DeclaredFrame("NMT command", 0x000, False, 2, None,
+                                                        "CiA 301 (NMT master)"))
     consumers = []
     for device in rig.canopen_nodes:
         rpdos, consumed = _eds(str(device.eds), device.node_id, _mtime(device.eds, "EDS"))

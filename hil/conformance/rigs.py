@@ -39,6 +39,9 @@ class RigBus:
     command_ids : frozenset of int
         The frames the DUT sends once per control period, on SYNC (a profile's
         ``wiring.command_ids`` take precedence).
+    dut_is_nmt_master : bool
+        The DUT is the NMT master of the rig's CANopen nodes (it may send NMT commands,
+        COB-ID 0x000, two bytes); else only the DBC can declare them for it.
     """
 
     dbc: Path
@@ -46,6 +49,7 @@ class RigBus:
     canopen_nodes: tuple[CanopenNode, ...]
     bitrate_bps: int
     command_ids: frozenset[int]
+    dut_is_nmt_master: bool = False
 
 
 _RIGS: dict[str, Callable[[Mapping[str, Any], str], RigBus]] = {}
@@ -91,7 +95,10 @@ def _sowing_depth(overrides: Mapping[str, Any], source: str) -> RigBus:
     return RigBus(dbc=DBC_PATH, dut_node="DepthController",
                   canopen_nodes=(CanopenNode("servo drive", drive, EDS_PATH),),
                   bitrate_bps=wiring.bitrate_bit_per_s,
-                  command_ids=frozenset({0x200 + drive, 0x300 + drive}))
+                  command_ids=frozenset({0x200 + drive, 0x300 + drive}),
+                  # the depth controller starts the drive (NMT start when its heartbeat shows
+                  # it is not Operational): the DBC is J1939 only, the drive is its EDS's
+                  dut_is_nmt_master=True)
 
 
 register("fertilizer", _fertilizer)

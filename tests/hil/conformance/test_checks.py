@@ -135,23 +135,27 @@ def test_depth_contract_takes_the_drive_pdos_from_its_eds() -> None:
     assert (frames[(0x302, False)].dlc, frames[(0x302, False)].cycle_ms) == (6, 10)
     assert (frames[(0x402, False)].dlc, frames[(0x402, False)].cycle_ms) == (1, None)
     assert frames[(0x000, False)].dlc == 2                  # NMT: the drive's master
+    assert (0x701, False) in frames                         # heartbeat, CiA 301
     assert frames[(0x18FF3080, True)].cycle_ms == 100
     assert contract.consumers == ()
 
 
-def test_every_frame_the_rigs_send_is_in_their_dbc() -> None:
-    """issue 20.6: cantools decode knows every frame of a run (the rig's own nodes here; the
-    servo drive's CANopen frames are its EDS's)."""
+def test_every_frame_the_fertilizer_rig_sends_is_in_its_dbc() -> None:
+    """issue 20.6: cantools decode knows every frame of a fertilizer run (the runs themselves
+    are checked in test_discrimination_bus.py)."""
     import cantools
 
     from plant_emulators.fertilizer.config import load_rig_config
-    from plant_emulators.sowing_depth.frames import DBC_PATH
 
     cfg = load_rig_config()
-    db = cantools.database.load_file(cfg.wiring.dbc_file)
-    ids = {m.frame_id for m in db.messages}
+    ids = {m.frame_id for m in cantools.database.load_file(cfg.wiring.dbc_file).messages}
     for node in (*cfg.wiring.flow_module_node_ids, cfg.wiring.ground_speed_node_id,
                  cfg.wiring.analog_output_node_id, cfg.wiring.dut_node_id):
         assert 0x700 + node in ids, f"heartbeat 0x{0x700 + node:X} not in the DBC"
-    depth = {m.frame_id for m in cantools.database.load_file(DBC_PATH).messages}
-    assert {0x000, 0x701} <= depth
+
+
+def test_the_fertilizer_dut_may_not_send_nmt() -> None:
+    """The fertilizer rig is the NMT master (the DBC's NmtMaster sends NMT and SYNC)."""
+    contract = build_contract(rig_bus("fertilizer"), node_id=0x10, heartbeat_period_ms=100,
+                              control_period_ms=100)
+    assert (0x000, False) not in contract.frames and (0x080, False) not in contract.frames
