@@ -159,3 +159,61 @@ def test_the_fertilizer_dut_may_not_send_nmt() -> None:
     contract = build_contract(rig_bus("fertilizer"), node_id=0x10, heartbeat_period_ms=100,
                               control_period_ms=100)
     assert (0x000, False) not in contract.frames and (0x080, False) not in contract.frames
+
+
+def _synthetic(frames: list[tuple[float, int, bool, bytes, bool]]):
+    from hil.conformance.framelog import FrameLog
+
+    return FrameLog(np.array([f[0] for f in frames]), np.array([f[1] for f in frames]),
+                    np.array([f[2] for f in frames]), np.array([len(f[3]) for f in frames]),
+                    np.array([f[4] for f in frames]),
+                    np.array([list(f[3].ljust(8, b"\0")) for f in frames], dtype=np.uint8))
+
+
+def _judge(frames, **kw):
+    from hil.conformance.measure import judge
+    from hil.dut.profile import load_profile
+
+    profile = load_profile("dut_profiles/fertilizer-piecewise-pid-daemon.toml")
+    contract = build_contract(rig_bus("fertilizer"), node_id=0x10, heartbeat_period_ms=100,
+                              control_period_ms=100, command_ids=frozenset({0x220}))
+    found = judge(_synthetic(frames), contract, profile, physics_period_s=0.001, **kw)
+    return {(m.name, m.conditions.get("message")): m for m in found.measurements}
+
+
+def _good_power_up(t0: float, steps: int) -> list[tuple[float, int, bool, bytes, bool]]:
+    out = [(t0, 0x710, False, b"\x00", True)]
+    for k in range(steps):
+        t = t0 + 0.1 * k
+        out += [(t, 0x080, False, b"", False), (t + 0.003, 0x220, False, b"\1\2\3\4", True),
+                (t + 0.003, 0x710, False, b"\x05", True)]
+    return out
+
+
+def test_judge_counts_restarts_and_leaves_other_nodes_traffic_out() -> None:
+    frames = _good_power_up(0.0, 30) + _good_power_up(5.0, 30)
+    frames += [(0.05 * k, 0x0CF00401, True, bytes(8), True) for k in range(100)]  # bus load
+    got = _judge(sorted(frames, key=lambda f: f[0]), clock="realtime", restarts=1,
+                 duration_s=8.0, foreign=np.array([0x0CF00401 + (1 << 32)]), bus_load=0.5)
+    assert all(m.outcome.value in ("pass", "info") for m in got.values()), \
+        [(k, m.value, m.note) for k, m in got.items() if m.outcome.value == "fail"]
+    assert got[("bus.bootup.unexpected", None)].value == 0
+    assert got[("bus.undeclared_frames", None)].value == 0
+    assert got[("bus.sync_latency.p99", None)].high is None        # a loaded bus: recorded
+    assert abs(got[("bus.sync_latency.p50", None)].value - 3.0) < 1e-6
+
+
+def test_judge_fails_what_a_defect_breaks() -> None:
+    frames = [(0.0, 0x220, False, b"\0\0\0\0", True), *_good_power_up(0.0, 30)]
+    frames += [(0.05, 0x7F0, False, b"\1", True), (1.0, 0x710, False, b"\x00", True)]
+    frames += [(1.2, 0x220, False, bytes(8), True)]
+    got = _judge(sorted(frames, key=lambda f: f[0]), clock="lockstep", restarts=0,
+                 duration_s=3.0)
+    assert got[("bus.bootup.frames_before", None)].value == 1
+    assert got[("bus.bootup.unexpected", None)].value == 1
+    assert got[("bus.undeclared_frames", None)].value == 1
+    assert "0x7F0 (1)" in got[("bus.undeclared_frames", None)].note
+    assert got[("bus.dlc_errors", "AnalogOutputCommand")].value == 1
+    for key in (("bus.bootup.frames_before", None), ("bus.bootup.unexpected", None),
+                ("bus.undeclared_frames", None), ("bus.dlc_errors", "AnalogOutputCommand")):
+        assert got[key].outcome.value == "fail", key
