@@ -203,8 +203,11 @@ class QualificationSession:
         test's, its per-message table goes to the run's ``conformance.json``."""
         from hil.conformance import run_conformance, write_detail
 
+        # the run's directory tells its measurements from the other runs' (same names)
+        run = self.run_dir_of(result).removeprefix("runs/")
         found = run_conformance(result.record, result.out_dir, self.profile,
-                                physics_period_s=rig_cls.physics_period_s)
+                                physics_period_s=rig_cls.physics_period_s,
+                                conditions={"run": run})
         write_detail(found, result.out_dir)
         for m in found.measurements:
             self._keep(nodeid, m, result)

@@ -117,8 +117,8 @@ def _limits(profile: DutProfile, name: str, low: float | None,
 
 
 def run_conformance(record: Mapping[str, Any], out_dir: Path, profile: DutProfile, *,
-                    physics_period_s: float, contract: BusContract | None = None
-                    ) -> Conformance:
+                    physics_period_s: float, contract: BusContract | None = None,
+                    conditions: Mapping[str, Any] | None = None) -> Conformance:
     """The bus conformance of the run recorded in ``out_dir``.
 
     Parameters
@@ -133,6 +133,9 @@ def run_conformance(record: Mapping[str, Any], out_dir: Path, profile: DutProfil
         The rig's physics step (how often it reads the bus in real time).
     contract : BusContract, optional
         The DUT's contract (default: :func:`contract_of` the profile).
+    conditions : mapping, optional
+        Added to every measurement's conditions: what tells this run's measurements from
+        another run's in one qualification (the plugin gives ``{"run": <run directory>}``).
 
     Returns
     -------
@@ -154,16 +157,18 @@ def run_conformance(record: Mapping[str, Any], out_dir: Path, profile: DutProfil
                               if e.get("kind") == "dut-restart"),
                  duration_s=float(record.get("sim_s") or 0.0),
                  physics_period_s=physics_period_s, foreign=_foreign_keys(record),
-                 bus_load=float((record.get("bus_load") or {}).get("fraction") or 0.0))
+                 bus_load=float((record.get("bus_load") or {}).get("fraction") or 0.0),
+                 conditions=conditions)
 
 
 def judge(log: FrameLog, contract: BusContract, profile: DutProfile, *, clock: str,
           restarts: int, duration_s: float, physics_period_s: float,
-          foreign: np.ndarray | None = None, bus_load: float = 0.0) -> Conformance:
+          foreign: np.ndarray | None = None, bus_load: float = 0.0,
+          conditions: Mapping[str, Any] | None = None) -> Conformance:
     """The checks on a frame log (the rig's received frames are the DUT's; ``foreign``: keys
     of other nodes' frames, left out; ``bus_load``: the fraction of the bit rate they took)."""
     out = Conformance()
-    node = {"node": contract.node_name}
+    node = {"node": contract.node_name, **(conditions or {})}
     keys_all = checks.frame_keys(log)
     sync_mask = ~log.rx & (log.can_id == SYNC_ID) & ~log.extended
     dut_mask = log.rx.copy()
