@@ -90,6 +90,31 @@ _SPECS = (
     # both rigs
     MeasurementSpec("rig.timing.lateness_p99", "us", "*",
                     "99th percentile of the rig's period lateness (real time only)"),
+    # bus conformance of the DUT, every run (hil/conformance; docs/guide/bus-conformance.md)
+    MeasurementSpec("bus.undeclared_frames", "frames", "*",
+                    "frames of the DUT that its databases do not declare for its node"),
+    MeasurementSpec("bus.dlc_errors", "frames", "*",
+                    "frames of one message whose data length differs from the database's"),
+    MeasurementSpec("bus.cycle_time.median", "%", "*",
+                    "median interval of a cyclic message, off its declared cycle time"),
+    MeasurementSpec("bus.cycle_time.outside_band", "%", "*",
+                    "share of a cyclic message's intervals outside the cycle-time band"),
+    MeasurementSpec("bus.heartbeat.period", "%", "*",
+                    "median heartbeat interval, off timing.heartbeat_period_ms"),
+    MeasurementSpec("bus.heartbeat.max_interval", "ms", "*",
+                    "longest heartbeat interval, against a rig node's consumer time (0x1016)"),
+    MeasurementSpec("bus.bootup.frames_before", "frames", "*",
+                    "frames of the DUT before its first boot-up message"),
+    MeasurementSpec("bus.bootup.unexpected", "frames", "*",
+                    "boot-up messages more or fewer than one per power-up"),
+    MeasurementSpec("bus.share", "%", "*",
+                    "the DUT's bits per second (exact, stuffing included) / the bit rate"),
+    MeasurementSpec("bus.sync_latency.p50", "ms", "*",
+                    "median time from SYNC to the DUT's command frame (real time only)"),
+    MeasurementSpec("bus.sync_latency.p99", "ms", "*",
+                    "99th percentile of the SYNC-to-command time (real time only)"),
+    MeasurementSpec("bus.sync_latency.max", "ms", "*",
+                    "longest SYNC-to-command time (real time only)"),
 )
 
 MEASUREMENTS: dict[str, MeasurementSpec] = {spec.name: spec for spec in _SPECS}

@@ -195,10 +195,26 @@ class QualificationSession:
             extra_meta={"dut_identity": profile.identity(), "dut_build": build,
                         "test": nodeid}))
         self.runs[key] = _RunEntry(result, rel, scenario.name)
+        if profile is self.profile:     # bus conformance of the DUT under qualification
+            self._conformance(nodeid, rig_cls, result)
         timing = result.record.get("timing") or {}
         if timing.get("mode") == "realtime" and not timing.get("valid", True):
             self.invalid_bench[nodeid] = rel
         return result
+
+    def _conformance(self, nodeid: str, rig_cls: type[Rig], result: RunResult) -> None:
+        """The run's bus conformance (:mod:`hil.conformance`): its measurements are the
+        test's, its per-message table goes to the run's ``conformance.json``."""
+        from hil.conformance import run_conformance, write_detail
+
+        # the run's directory tells its measurements from the other runs' (same names)
+        run = self.run_dir_of(result).removeprefix("runs/")
+        found = run_conformance(result.record, result.out_dir, self.profile,
+                                physics_period_s=rig_cls.physics_period_s,
+                                conditions={"run": run})
+        write_detail(found, result.out_dir)
+        for m in found.measurements:
+            self._keep(nodeid, m, result)
 
     def run_dir_of(self, result: RunResult) -> str:
         for entry in self.runs.values():
@@ -223,6 +239,9 @@ class QualificationSession:
                         conditions=dict(conditions or {}), note=note,
                         **({"marginal_band": limit.marginal}
                            if limit is not None and limit.marginal is not None else {}))
+        return self._keep(nodeid, m, run)
+
+    def _keep(self, nodeid: str, m: Measurement, run: RunResult | None) -> Measurement:
         entry = m.to_dict()
         entry["test"] = nodeid
         entry["run"] = self.run_dir_of(run) if run is not None else ""

@@ -128,8 +128,8 @@ def _by_key(record: dict[str, Any]) -> dict[tuple[str, str, str], dict[str, Any]
 def _faults(record: dict[str, Any]) -> dict[tuple[str, str], dict[str, Any]]:
     out = {}
     for m in record["measurements"]:
-        if m["name"].startswith("depth.step."):
-            continue
+        if m["name"].startswith("depth.step.") or not m["name"].startswith("depth."):
+            continue                    # step measurements, and bus conformance (every run)
         key = (m["name"].removeprefix("depth."), m["conditions"].get("fault", ""))
         assert key not in out, f"measured twice: {key}"
         out[key] = m

@@ -1813,6 +1813,301 @@ bool fertilizer_analog_output_command_ch2_output_is_in_phys_range(double value)
     return ((value >= 0.0) && (value <= 10000.0));
 }
 
+int fertilizer_flow_module1_heartbeat_pack(
+    uint8_t *dst_p,
+    const struct fertilizer_flow_module1_heartbeat_t *src_p,
+    size_t size)
+{
+    if (size < 1u) {
+        return (-EINVAL);
+    }
+
+    memset(&dst_p[0], 0, 1);
+
+    dst_p[0] |= pack_left_shift_u8(src_p->nmt_state, 0u, 0xffu);
+
+    return (1);
+}
+
+int fertilizer_flow_module1_heartbeat_unpack(
+    struct fertilizer_flow_module1_heartbeat_t *dst_p,
+    const uint8_t *src_p,
+    size_t size)
+{
+    if (size < 1u) {
+        return (-EINVAL);
+    }
+
+    dst_p->nmt_state = unpack_right_shift_u8(src_p[0], 0u, 0xffu);
+
+    return (0);
+}
+
+int fertilizer_flow_module1_heartbeat_init(struct fertilizer_flow_module1_heartbeat_t *msg_p)
+{
+    if (msg_p == NULL) return -1;
+
+    memset(msg_p, 0, sizeof(struct fertilizer_flow_module1_heartbeat_t));
+
+    return 0;
+}
+
+uint8_t fertilizer_flow_module1_heartbeat_nmt_state_encode(double value)
+{
+    return (uint8_t)(cantools_unsigned_from_double(round(value)));
+}
+
+double fertilizer_flow_module1_heartbeat_nmt_state_decode(uint8_t value)
+{
+    return ((double)value);
+}
+
+bool fertilizer_flow_module1_heartbeat_nmt_state_is_in_range(uint8_t value)
+{
+    return (value <= 127u);
+}
+
+bool fertilizer_flow_module1_heartbeat_nmt_state_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 127.0));
+}
+
+int fertilizer_flow_module2_heartbeat_pack(
+    uint8_t *dst_p,
+    const struct fertilizer_flow_module2_heartbeat_t *src_p,
+    size_t size)
+{
+    if (size < 1u) {
+        return (-EINVAL);
+    }
+
+    memset(&dst_p[0], 0, 1);
+
+    dst_p[0] |= pack_left_shift_u8(src_p->nmt_state, 0u, 0xffu);
+
+    return (1);
+}
+
+int fertilizer_flow_module2_heartbeat_unpack(
+    struct fertilizer_flow_module2_heartbeat_t *dst_p,
+    const uint8_t *src_p,
+    size_t size)
+{
+    if (size < 1u) {
+        return (-EINVAL);
+    }
+
+    dst_p->nmt_state = unpack_right_shift_u8(src_p[0], 0u, 0xffu);
+
+    return (0);
+}
+
+int fertilizer_flow_module2_heartbeat_init(struct fertilizer_flow_module2_heartbeat_t *msg_p)
+{
+    if (msg_p == NULL) return -1;
+
+    memset(msg_p, 0, sizeof(struct fertilizer_flow_module2_heartbeat_t));
+
+    return 0;
+}
+
+uint8_t fertilizer_flow_module2_heartbeat_nmt_state_encode(double value)
+{
+    return (uint8_t)(cantools_unsigned_from_double(round(value)));
+}
+
+double fertilizer_flow_module2_heartbeat_nmt_state_decode(uint8_t value)
+{
+    return ((double)value);
+}
+
+bool fertilizer_flow_module2_heartbeat_nmt_state_is_in_range(uint8_t value)
+{
+    return (value <= 127u);
+}
+
+bool fertilizer_flow_module2_heartbeat_nmt_state_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 127.0));
+}
+
+int fertilizer_flow_module3_heartbeat_pack(
+    uint8_t *dst_p,
+    const struct fertilizer_flow_module3_heartbeat_t *src_p,
+    size_t size)
+{
+    if (size < 1u) {
+        return (-EINVAL);
+    }
+
+    memset(&dst_p[0], 0, 1);
+
+    dst_p[0] |= pack_left_shift_u8(src_p->nmt_state, 0u, 0xffu);
+
+    return (1);
+}
+
+int fertilizer_flow_module3_heartbeat_unpack(
+    struct fertilizer_flow_module3_heartbeat_t *dst_p,
+    const uint8_t *src_p,
+    size_t size)
+{
+    if (size < 1u) {
+        return (-EINVAL);
+    }
+
+    dst_p->nmt_state = unpack_right_shift_u8(src_p[0], 0u, 0xffu);
+
+    return (0);
+}
+
+int fertilizer_flow_module3_heartbeat_init(struct fertilizer_flow_module3_heartbeat_t *msg_p)
+{
+    if (msg_p == NULL) return -1;
+
+    memset(msg_p, 0, sizeof(struct fertilizer_flow_module3_heartbeat_t));
+
+    return 0;
+}
+
+uint8_t fertilizer_flow_module3_heartbeat_nmt_state_encode(double value)
+{
+    return (uint8_t)(cantools_unsigned_from_double(round(value)));
+}
+
+double fertilizer_flow_module3_heartbeat_nmt_state_decode(uint8_t value)
+{
+    return ((double)value);
+}
+
+bool fertilizer_flow_module3_heartbeat_nmt_state_is_in_range(uint8_t value)
+{
+    return (value <= 127u);
+}
+
+bool fertilizer_flow_module3_heartbeat_nmt_state_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 127.0));
+}
+
+int fertilizer_flow_module4_heartbeat_pack(
+    uint8_t *dst_p,
+    const struct fertilizer_flow_module4_heartbeat_t *src_p,
+    size_t size)
+{
+    if (size < 1u) {
+        return (-EINVAL);
+    }
+
+    memset(&dst_p[0], 0, 1);
+
+    dst_p[0] |= pack_left_shift_u8(src_p->nmt_state, 0u, 0xffu);
+
+    return (1);
+}
+
+int fertilizer_flow_module4_heartbeat_unpack(
+    struct fertilizer_flow_module4_heartbeat_t *dst_p,
+    const uint8_t *src_p,
+    size_t size)
+{
+    if (size < 1u) {
+        return (-EINVAL);
+    }
+
+    dst_p->nmt_state = unpack_right_shift_u8(src_p[0], 0u, 0xffu);
+
+    return (0);
+}
+
+int fertilizer_flow_module4_heartbeat_init(struct fertilizer_flow_module4_heartbeat_t *msg_p)
+{
+    if (msg_p == NULL) return -1;
+
+    memset(msg_p, 0, sizeof(struct fertilizer_flow_module4_heartbeat_t));
+
+    return 0;
+}
+
+uint8_t fertilizer_flow_module4_heartbeat_nmt_state_encode(double value)
+{
+    return (uint8_t)(cantools_unsigned_from_double(round(value)));
+}
+
+double fertilizer_flow_module4_heartbeat_nmt_state_decode(uint8_t value)
+{
+    return ((double)value);
+}
+
+bool fertilizer_flow_module4_heartbeat_nmt_state_is_in_range(uint8_t value)
+{
+    return (value <= 127u);
+}
+
+bool fertilizer_flow_module4_heartbeat_nmt_state_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 127.0));
+}
+
+int fertilizer_ground_speed_sensor_heartbeat_pack(
+    uint8_t *dst_p,
+    const struct fertilizer_ground_speed_sensor_heartbeat_t *src_p,
+    size_t size)
+{
+    if (size < 1u) {
+        return (-EINVAL);
+    }
+
+    memset(&dst_p[0], 0, 1);
+
+    dst_p[0] |= pack_left_shift_u8(src_p->nmt_state, 0u, 0xffu);
+
+    return (1);
+}
+
+int fertilizer_ground_speed_sensor_heartbeat_unpack(
+    struct fertilizer_ground_speed_sensor_heartbeat_t *dst_p,
+    const uint8_t *src_p,
+    size_t size)
+{
+    if (size < 1u) {
+        return (-EINVAL);
+    }
+
+    dst_p->nmt_state = unpack_right_shift_u8(src_p[0], 0u, 0xffu);
+
+    return (0);
+}
+
+int fertilizer_ground_speed_sensor_heartbeat_init(struct fertilizer_ground_speed_sensor_heartbeat_t *msg_p)
+{
+    if (msg_p == NULL) return -1;
+
+    memset(msg_p, 0, sizeof(struct fertilizer_ground_speed_sensor_heartbeat_t));
+
+    return 0;
+}
+
+uint8_t fertilizer_ground_speed_sensor_heartbeat_nmt_state_encode(double value)
+{
+    return (uint8_t)(cantools_unsigned_from_double(round(value)));
+}
+
+double fertilizer_ground_speed_sensor_heartbeat_nmt_state_decode(uint8_t value)
+{
+    return ((double)value);
+}
+
+bool fertilizer_ground_speed_sensor_heartbeat_nmt_state_is_in_range(uint8_t value)
+{
+    return (value <= 127u);
+}
+
+bool fertilizer_ground_speed_sensor_heartbeat_nmt_state_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 127.0));
+}
+
 int fertilizer_controller_heartbeat_pack(
     uint8_t *dst_p,
     const struct fertilizer_controller_heartbeat_t *src_p,

@@ -55,6 +55,11 @@ extern "C" {
 #define FERTILIZER_CONTROLLER_STATUS_FRAME_ID (0x190u)
 #define FERTILIZER_FERT_SETPOINT_FRAME_ID (0x210u)
 #define FERTILIZER_ANALOG_OUTPUT_COMMAND_FRAME_ID (0x220u)
+#define FERTILIZER_FLOW_MODULE1_HEARTBEAT_FRAME_ID (0x701u)
+#define FERTILIZER_FLOW_MODULE2_HEARTBEAT_FRAME_ID (0x702u)
+#define FERTILIZER_FLOW_MODULE3_HEARTBEAT_FRAME_ID (0x703u)
+#define FERTILIZER_FLOW_MODULE4_HEARTBEAT_FRAME_ID (0x704u)
+#define FERTILIZER_GROUND_SPEED_SENSOR_HEARTBEAT_FRAME_ID (0x705u)
 #define FERTILIZER_CONTROLLER_HEARTBEAT_FRAME_ID (0x710u)
 #define FERTILIZER_ANALOG_OUTPUT_HEARTBEAT_FRAME_ID (0x720u)
 #define FERTILIZER_WHEEL_BASED_SPEED_DIST_FRAME_ID (0xcfe48f0u)
@@ -71,6 +76,11 @@ extern "C" {
 #define FERTILIZER_CONTROLLER_STATUS_LENGTH (8u)
 #define FERTILIZER_FERT_SETPOINT_LENGTH (8u)
 #define FERTILIZER_ANALOG_OUTPUT_COMMAND_LENGTH (4u)
+#define FERTILIZER_FLOW_MODULE1_HEARTBEAT_LENGTH (1u)
+#define FERTILIZER_FLOW_MODULE2_HEARTBEAT_LENGTH (1u)
+#define FERTILIZER_FLOW_MODULE3_HEARTBEAT_LENGTH (1u)
+#define FERTILIZER_FLOW_MODULE4_HEARTBEAT_LENGTH (1u)
+#define FERTILIZER_GROUND_SPEED_SENSOR_HEARTBEAT_LENGTH (1u)
 #define FERTILIZER_CONTROLLER_HEARTBEAT_LENGTH (1u)
 #define FERTILIZER_ANALOG_OUTPUT_HEARTBEAT_LENGTH (1u)
 #define FERTILIZER_WHEEL_BASED_SPEED_DIST_LENGTH (8u)
@@ -87,6 +97,11 @@ extern "C" {
 #define FERTILIZER_CONTROLLER_STATUS_IS_EXTENDED (0)
 #define FERTILIZER_FERT_SETPOINT_IS_EXTENDED (0)
 #define FERTILIZER_ANALOG_OUTPUT_COMMAND_IS_EXTENDED (0)
+#define FERTILIZER_FLOW_MODULE1_HEARTBEAT_IS_EXTENDED (0)
+#define FERTILIZER_FLOW_MODULE2_HEARTBEAT_IS_EXTENDED (0)
+#define FERTILIZER_FLOW_MODULE3_HEARTBEAT_IS_EXTENDED (0)
+#define FERTILIZER_FLOW_MODULE4_HEARTBEAT_IS_EXTENDED (0)
+#define FERTILIZER_GROUND_SPEED_SENSOR_HEARTBEAT_IS_EXTENDED (0)
 #define FERTILIZER_CONTROLLER_HEARTBEAT_IS_EXTENDED (0)
 #define FERTILIZER_ANALOG_OUTPUT_HEARTBEAT_IS_EXTENDED (0)
 #define FERTILIZER_WHEEL_BASED_SPEED_DIST_IS_EXTENDED (1)
@@ -98,9 +113,14 @@ extern "C" {
 #define FERTILIZER_FLOW_MODULE3_CYCLE_TIME_MS (1000u)
 #define FERTILIZER_FLOW_MODULE4_CYCLE_TIME_MS (1000u)
 #define FERTILIZER_GROUND_WHEEL_SPEED_CYCLE_TIME_MS (50u)
-#define FERTILIZER_CONTROLLER_STATUS_CYCLE_TIME_MS (10u)
+#define FERTILIZER_CONTROLLER_STATUS_CYCLE_TIME_MS (1000u)
 #define FERTILIZER_FERT_SETPOINT_CYCLE_TIME_MS (200u)
-#define FERTILIZER_ANALOG_OUTPUT_COMMAND_CYCLE_TIME_MS (10u)
+#define FERTILIZER_ANALOG_OUTPUT_COMMAND_CYCLE_TIME_MS (100u)
+#define FERTILIZER_FLOW_MODULE1_HEARTBEAT_CYCLE_TIME_MS (1000u)
+#define FERTILIZER_FLOW_MODULE2_HEARTBEAT_CYCLE_TIME_MS (1000u)
+#define FERTILIZER_FLOW_MODULE3_HEARTBEAT_CYCLE_TIME_MS (1000u)
+#define FERTILIZER_FLOW_MODULE4_HEARTBEAT_CYCLE_TIME_MS (1000u)
+#define FERTILIZER_GROUND_SPEED_SENSOR_HEARTBEAT_CYCLE_TIME_MS (1000u)
 #define FERTILIZER_CONTROLLER_HEARTBEAT_CYCLE_TIME_MS (100u)
 #define FERTILIZER_ANALOG_OUTPUT_HEARTBEAT_CYCLE_TIME_MS (1000u)
 #define FERTILIZER_WHEEL_BASED_SPEED_DIST_CYCLE_TIME_MS (100u)
@@ -132,6 +152,31 @@ extern "C" {
 #define FERTILIZER_FERT_SETPOINT_SPEED_SOURCE_WHEEL_BASED_CHOICE (1u)
 #define FERTILIZER_FERT_SETPOINT_SPEED_SOURCE_GROUND_BASED_CHOICE (2u)
 #define FERTILIZER_FERT_SETPOINT_SPEED_SOURCE_RESERVED_CHOICE (3u)
+
+#define FERTILIZER_FLOW_MODULE1_HEARTBEAT_NMT_STATE_BOOT_UP_CHOICE (0u)
+#define FERTILIZER_FLOW_MODULE1_HEARTBEAT_NMT_STATE_STOPPED_CHOICE (4u)
+#define FERTILIZER_FLOW_MODULE1_HEARTBEAT_NMT_STATE_OPERATIONAL_CHOICE (5u)
+#define FERTILIZER_FLOW_MODULE1_HEARTBEAT_NMT_STATE_PRE_OPERATIONAL_CHOICE (127u)
+
+#define FERTILIZER_FLOW_MODULE2_HEARTBEAT_NMT_STATE_BOOT_UP_CHOICE (0u)
+#define FERTILIZER_FLOW_MODULE2_HEARTBEAT_NMT_STATE_STOPPED_CHOICE (4u)
+#define FERTILIZER_FLOW_MODULE2_HEARTBEAT_NMT_STATE_OPERATIONAL_CHOICE (5u)
+#define FERTILIZER_FLOW_MODULE2_HEARTBEAT_NMT_STATE_PRE_OPERATIONAL_CHOICE (127u)
+
+#define FERTILIZER_FLOW_MODULE3_HEARTBEAT_NMT_STATE_BOOT_UP_CHOICE (0u)
+#define FERTILIZER_FLOW_MODULE3_HEARTBEAT_NMT_STATE_STOPPED_CHOICE (4u)
+#define FERTILIZER_FLOW_MODULE3_HEARTBEAT_NMT_STATE_OPERATIONAL_CHOICE (5u)
+#define FERTILIZER_FLOW_MODULE3_HEARTBEAT_NMT_STATE_PRE_OPERATIONAL_CHOICE (127u)
+
+#define FERTILIZER_FLOW_MODULE4_HEARTBEAT_NMT_STATE_BOOT_UP_CHOICE (0u)
+#define FERTILIZER_FLOW_MODULE4_HEARTBEAT_NMT_STATE_STOPPED_CHOICE (4u)
+#define FERTILIZER_FLOW_MODULE4_HEARTBEAT_NMT_STATE_OPERATIONAL_CHOICE (5u)
+#define FERTILIZER_FLOW_MODULE4_HEARTBEAT_NMT_STATE_PRE_OPERATIONAL_CHOICE (127u)
+
+#define FERTILIZER_GROUND_SPEED_SENSOR_HEARTBEAT_NMT_STATE_BOOT_UP_CHOICE (0u)
+#define FERTILIZER_GROUND_SPEED_SENSOR_HEARTBEAT_NMT_STATE_STOPPED_CHOICE (4u)
+#define FERTILIZER_GROUND_SPEED_SENSOR_HEARTBEAT_NMT_STATE_OPERATIONAL_CHOICE (5u)
+#define FERTILIZER_GROUND_SPEED_SENSOR_HEARTBEAT_NMT_STATE_PRE_OPERATIONAL_CHOICE (127u)
 
 #define FERTILIZER_CONTROLLER_HEARTBEAT_NMT_STATE_BOOT_UP_CHOICE (0u)
 #define FERTILIZER_CONTROLLER_HEARTBEAT_NMT_STATE_STOPPED_CHOICE (4u)
@@ -179,6 +224,11 @@ extern "C" {
 #define FERTILIZER_CONTROLLER_STATUS_NAME "ControllerStatus"
 #define FERTILIZER_FERT_SETPOINT_NAME "FertSetpoint"
 #define FERTILIZER_ANALOG_OUTPUT_COMMAND_NAME "AnalogOutputCommand"
+#define FERTILIZER_FLOW_MODULE1_HEARTBEAT_NAME "FlowModule1Heartbeat"
+#define FERTILIZER_FLOW_MODULE2_HEARTBEAT_NAME "FlowModule2Heartbeat"
+#define FERTILIZER_FLOW_MODULE3_HEARTBEAT_NAME "FlowModule3Heartbeat"
+#define FERTILIZER_FLOW_MODULE4_HEARTBEAT_NAME "FlowModule4Heartbeat"
+#define FERTILIZER_GROUND_SPEED_SENSOR_HEARTBEAT_NAME "GroundSpeedSensorHeartbeat"
 #define FERTILIZER_CONTROLLER_HEARTBEAT_NAME "ControllerHeartbeat"
 #define FERTILIZER_ANALOG_OUTPUT_HEARTBEAT_NAME "AnalogOutputHeartbeat"
 #define FERTILIZER_WHEEL_BASED_SPEED_DIST_NAME "WheelBasedSpeedDist"
@@ -242,6 +292,11 @@ extern "C" {
 #define FERTILIZER_FERT_SETPOINT_COUNTER_NAME "Counter"
 #define FERTILIZER_ANALOG_OUTPUT_COMMAND_CH1_OUTPUT_NAME "Ch1Output"
 #define FERTILIZER_ANALOG_OUTPUT_COMMAND_CH2_OUTPUT_NAME "Ch2Output"
+#define FERTILIZER_FLOW_MODULE1_HEARTBEAT_NMT_STATE_NAME "NmtState"
+#define FERTILIZER_FLOW_MODULE2_HEARTBEAT_NMT_STATE_NAME "NmtState"
+#define FERTILIZER_FLOW_MODULE3_HEARTBEAT_NMT_STATE_NAME "NmtState"
+#define FERTILIZER_FLOW_MODULE4_HEARTBEAT_NMT_STATE_NAME "NmtState"
+#define FERTILIZER_GROUND_SPEED_SENSOR_HEARTBEAT_NMT_STATE_NAME "NmtState"
 #define FERTILIZER_CONTROLLER_HEARTBEAT_NMT_STATE_NAME "NmtState"
 #define FERTILIZER_ANALOG_OUTPUT_HEARTBEAT_NMT_STATE_NAME "NmtState"
 #define FERTILIZER_WHEEL_BASED_SPEED_DIST_WHEEL_BASED_MACHINE_SPEED_NAME "WheelBasedMachineSpeed"
@@ -629,7 +684,7 @@ struct fertilizer_ground_wheel_speed_t {
 /**
  * Signals in message ControllerStatus.
  *
- * Flow controller status, TPDO1 of the DUT (0x180 + 0x10). Optional: the reference DUTs send it every control period; the rig records it, never judges by it.
+ * Flow controller status, TPDO1 of the DUT (0x180 + 0x10). Optional: the reference DUTs send it every 10th control period (1 s, the first step included); the rig records it, never judges by it.
  *
  * All signal values are as on the CAN bus.
  */
@@ -787,7 +842,7 @@ struct fertilizer_fert_setpoint_t {
 /**
  * Signals in message AnalogOutputCommand.
  *
- * RPDO1 of the analog output module (0x200 + 0x20), mapped to 0x6411 sub 1 and sub 2 (INTEGER16). Scaling: 1 mV per bit, 0..10000 = 0..10 V; values outside are clipped by the module.
+ * RPDO1 of the analog output module (0x200 + 0x20), sent by the controller once per control period (after each SYNC in lockstep: 100 ms, the DUT profile's timing.control_period_ms), mapped to 0x6411 sub 1 and sub 2 (INTEGER16). Scaling: 1 mV per bit, 0..10000 = 0..10 V; values outside are clipped by the module.
  *
  * All signal values are as on the CAN bus.
  */
@@ -809,6 +864,86 @@ struct fertilizer_analog_output_command_t {
      * Offset: 0
      */
     int16_t ch2_output;
+};
+
+/**
+ * Signals in message FlowModule1Heartbeat.
+ *
+ * CANopen heartbeat of flow module 1 (0x700 + 1), every 1 s, state Operational.
+ *
+ * All signal values are as on the CAN bus.
+ */
+struct fertilizer_flow_module1_heartbeat_t {
+    /**
+     * Range: 0..127 (0..127 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t nmt_state;
+};
+
+/**
+ * Signals in message FlowModule2Heartbeat.
+ *
+ * CANopen heartbeat of flow module 2 (0x700 + 2), every 1 s, state Operational.
+ *
+ * All signal values are as on the CAN bus.
+ */
+struct fertilizer_flow_module2_heartbeat_t {
+    /**
+     * Range: 0..127 (0..127 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t nmt_state;
+};
+
+/**
+ * Signals in message FlowModule3Heartbeat.
+ *
+ * CANopen heartbeat of flow module 3 (0x700 + 3), every 1 s, state Operational.
+ *
+ * All signal values are as on the CAN bus.
+ */
+struct fertilizer_flow_module3_heartbeat_t {
+    /**
+     * Range: 0..127 (0..127 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t nmt_state;
+};
+
+/**
+ * Signals in message FlowModule4Heartbeat.
+ *
+ * CANopen heartbeat of flow module 4 (0x700 + 4), every 1 s, state Operational.
+ *
+ * All signal values are as on the CAN bus.
+ */
+struct fertilizer_flow_module4_heartbeat_t {
+    /**
+     * Range: 0..127 (0..127 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t nmt_state;
+};
+
+/**
+ * Signals in message GroundSpeedSensorHeartbeat.
+ *
+ * CANopen heartbeat of the Hall ground-wheel speed node (0x700 + 5), every 1 s, state Operational.
+ *
+ * All signal values are as on the CAN bus.
+ */
+struct fertilizer_ground_speed_sensor_heartbeat_t {
+    /**
+     * Range: 0..127 (0..127 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t nmt_state;
 };
 
 /**
@@ -3596,6 +3731,391 @@ bool fertilizer_analog_output_command_ch2_output_is_in_range(int16_t value);
  * @return true if in range, false otherwise.
  */
 bool fertilizer_analog_output_command_ch2_output_is_in_phys_range(double value);
+
+/**
+ * Pack message FlowModule1Heartbeat.
+ *
+ * @param[out] dst_p Buffer to pack the message into.
+ * @param[in] src_p Data to pack.
+ * @param[in] size Size of dst_p.
+ *
+ * @return Size of packed data, or negative error code.
+ */
+int fertilizer_flow_module1_heartbeat_pack(
+    uint8_t *dst_p,
+    const struct fertilizer_flow_module1_heartbeat_t *src_p,
+    size_t size);
+
+/**
+ * Unpack message FlowModule1Heartbeat.
+ *
+ * @param[out] dst_p Object to unpack the message into.
+ * @param[in] src_p Message to unpack.
+ * @param[in] size Size of src_p.
+ *
+ * @return zero(0) or negative error code.
+ */
+int fertilizer_flow_module1_heartbeat_unpack(
+    struct fertilizer_flow_module1_heartbeat_t *dst_p,
+    const uint8_t *src_p,
+    size_t size);
+
+/**
+ * Init message fields to default values from FlowModule1Heartbeat.
+ *
+ * @param[in] msg_p Message to init.
+ *
+ * @return zero(0) on success or (-1) in case of nullptr argument.
+ */
+int fertilizer_flow_module1_heartbeat_init(struct fertilizer_flow_module1_heartbeat_t *msg_p);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint8_t fertilizer_flow_module1_heartbeat_nmt_state_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double fertilizer_flow_module1_heartbeat_nmt_state_decode(uint8_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool fertilizer_flow_module1_heartbeat_nmt_state_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool fertilizer_flow_module1_heartbeat_nmt_state_is_in_phys_range(double value);
+
+/**
+ * Pack message FlowModule2Heartbeat.
+ *
+ * @param[out] dst_p Buffer to pack the message into.
+ * @param[in] src_p Data to pack.
+ * @param[in] size Size of dst_p.
+ *
+ * @return Size of packed data, or negative error code.
+ */
+int fertilizer_flow_module2_heartbeat_pack(
+    uint8_t *dst_p,
+    const struct fertilizer_flow_module2_heartbeat_t *src_p,
+    size_t size);
+
+/**
+ * Unpack message FlowModule2Heartbeat.
+ *
+ * @param[out] dst_p Object to unpack the message into.
+ * @param[in] src_p Message to unpack.
+ * @param[in] size Size of src_p.
+ *
+ * @return zero(0) or negative error code.
+ */
+int fertilizer_flow_module2_heartbeat_unpack(
+    struct fertilizer_flow_module2_heartbeat_t *dst_p,
+    const uint8_t *src_p,
+    size_t size);
+
+/**
+ * Init message fields to default values from FlowModule2Heartbeat.
+ *
+ * @param[in] msg_p Message to init.
+ *
+ * @return zero(0) on success or (-1) in case of nullptr argument.
+ */
+int fertilizer_flow_module2_heartbeat_init(struct fertilizer_flow_module2_heartbeat_t *msg_p);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint8_t fertilizer_flow_module2_heartbeat_nmt_state_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double fertilizer_flow_module2_heartbeat_nmt_state_decode(uint8_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool fertilizer_flow_module2_heartbeat_nmt_state_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool fertilizer_flow_module2_heartbeat_nmt_state_is_in_phys_range(double value);
+
+/**
+ * Pack message FlowModule3Heartbeat.
+ *
+ * @param[out] dst_p Buffer to pack the message into.
+ * @param[in] src_p Data to pack.
+ * @param[in] size Size of dst_p.
+ *
+ * @return Size of packed data, or negative error code.
+ */
+int fertilizer_flow_module3_heartbeat_pack(
+    uint8_t *dst_p,
+    const struct fertilizer_flow_module3_heartbeat_t *src_p,
+    size_t size);
+
+/**
+ * Unpack message FlowModule3Heartbeat.
+ *
+ * @param[out] dst_p Object to unpack the message into.
+ * @param[in] src_p Message to unpack.
+ * @param[in] size Size of src_p.
+ *
+ * @return zero(0) or negative error code.
+ */
+int fertilizer_flow_module3_heartbeat_unpack(
+    struct fertilizer_flow_module3_heartbeat_t *dst_p,
+    const uint8_t *src_p,
+    size_t size);
+
+/**
+ * Init message fields to default values from FlowModule3Heartbeat.
+ *
+ * @param[in] msg_p Message to init.
+ *
+ * @return zero(0) on success or (-1) in case of nullptr argument.
+ */
+int fertilizer_flow_module3_heartbeat_init(struct fertilizer_flow_module3_heartbeat_t *msg_p);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint8_t fertilizer_flow_module3_heartbeat_nmt_state_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double fertilizer_flow_module3_heartbeat_nmt_state_decode(uint8_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool fertilizer_flow_module3_heartbeat_nmt_state_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool fertilizer_flow_module3_heartbeat_nmt_state_is_in_phys_range(double value);
+
+/**
+ * Pack message FlowModule4Heartbeat.
+ *
+ * @param[out] dst_p Buffer to pack the message into.
+ * @param[in] src_p Data to pack.
+ * @param[in] size Size of dst_p.
+ *
+ * @return Size of packed data, or negative error code.
+ */
+int fertilizer_flow_module4_heartbeat_pack(
+    uint8_t *dst_p,
+    const struct fertilizer_flow_module4_heartbeat_t *src_p,
+    size_t size);
+
+/**
+ * Unpack message FlowModule4Heartbeat.
+ *
+ * @param[out] dst_p Object to unpack the message into.
+ * @param[in] src_p Message to unpack.
+ * @param[in] size Size of src_p.
+ *
+ * @return zero(0) or negative error code.
+ */
+int fertilizer_flow_module4_heartbeat_unpack(
+    struct fertilizer_flow_module4_heartbeat_t *dst_p,
+    const uint8_t *src_p,
+    size_t size);
+
+/**
+ * Init message fields to default values from FlowModule4Heartbeat.
+ *
+ * @param[in] msg_p Message to init.
+ *
+ * @return zero(0) on success or (-1) in case of nullptr argument.
+ */
+int fertilizer_flow_module4_heartbeat_init(struct fertilizer_flow_module4_heartbeat_t *msg_p);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint8_t fertilizer_flow_module4_heartbeat_nmt_state_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double fertilizer_flow_module4_heartbeat_nmt_state_decode(uint8_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool fertilizer_flow_module4_heartbeat_nmt_state_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool fertilizer_flow_module4_heartbeat_nmt_state_is_in_phys_range(double value);
+
+/**
+ * Pack message GroundSpeedSensorHeartbeat.
+ *
+ * @param[out] dst_p Buffer to pack the message into.
+ * @param[in] src_p Data to pack.
+ * @param[in] size Size of dst_p.
+ *
+ * @return Size of packed data, or negative error code.
+ */
+int fertilizer_ground_speed_sensor_heartbeat_pack(
+    uint8_t *dst_p,
+    const struct fertilizer_ground_speed_sensor_heartbeat_t *src_p,
+    size_t size);
+
+/**
+ * Unpack message GroundSpeedSensorHeartbeat.
+ *
+ * @param[out] dst_p Object to unpack the message into.
+ * @param[in] src_p Message to unpack.
+ * @param[in] size Size of src_p.
+ *
+ * @return zero(0) or negative error code.
+ */
+int fertilizer_ground_speed_sensor_heartbeat_unpack(
+    struct fertilizer_ground_speed_sensor_heartbeat_t *dst_p,
+    const uint8_t *src_p,
+    size_t size);
+
+/**
+ * Init message fields to default values from GroundSpeedSensorHeartbeat.
+ *
+ * @param[in] msg_p Message to init.
+ *
+ * @return zero(0) on success or (-1) in case of nullptr argument.
+ */
+int fertilizer_ground_speed_sensor_heartbeat_init(struct fertilizer_ground_speed_sensor_heartbeat_t *msg_p);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint8_t fertilizer_ground_speed_sensor_heartbeat_nmt_state_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double fertilizer_ground_speed_sensor_heartbeat_nmt_state_decode(uint8_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool fertilizer_ground_speed_sensor_heartbeat_nmt_state_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool fertilizer_ground_speed_sensor_heartbeat_nmt_state_is_in_phys_range(double value);
 
 /**
  * Pack message ControllerHeartbeat.

@@ -9,6 +9,7 @@ from hil import __version__
 from hil.report.markup import esc
 from hil.report.record import QualRecord, ReportError, load_qualification
 from hil.report.rundata import RunData, load_runs
+from hil.report.sections_conformance import conformance_section
 from hil.report.sections_head import VERDICT_WORDS, header, identity_section, verdict_section
 from hil.report.sections_plots import condition_section, run_plot_sections, timing_section
 from hil.report.sections_tables import (
@@ -24,7 +25,8 @@ REPORT_NAME = "report.html"
 # the verdict and the measurement table fill the first screenful (1366x768); who was tested
 # on what bench follows them (the verdict banner names the DUT, its version and build)
 _NAV = (("verdict", "Verdict"), ("measurements", "Measurements"),
-        ("identity", "Device and bench"), ("plots-step", "Step responses"),
+        ("conformance", "Bus conformance"), ("identity", "Device and bench"),
+        ("plots-step", "Step responses"),
         ("plots-field", "Field runs"), ("per-condition", "Per condition"),
         ("plots-other", "Other runs"), ("timing", "Timing"), ("runs", "Runs"),
         ("tests", "Tests"), ("errors", "Errors"))
@@ -41,6 +43,7 @@ def render(qual: QualRecord, runs: list[RunData]) -> str:
     sections = {
         "verdict": verdict_section(qual, runs, has_errors=bool(errors)),
         "measurements": measurements_section(qual, runs),
+        "conformance": conformance_section(qual, runs),
         "identity": identity_section(qual, runs),
         "plots-step": plots.get("step", ""),
         "plots-field": plots.get("field", ""),

@@ -61,6 +61,11 @@ class PiFlowController(Controller):
             return 0.1 * sp["TargetRate"] * sp["WorkingWidth"] * self.wheel_speed / rows
         return float(sp["TargetFlow"])
 
+    def on_start(self) -> list[can.Message]:
+        """The CANopen boot-up message (heartbeat state 0): a node announces itself before it
+        sends anything else (CiA 301; judged by bus conformance)."""
+        return [self.db.heartbeat("ControllerHeartbeat", 0x00)]
+
     def on_frame(self, msg: can.Message) -> list[can.Message]:
         can_id = msg.arbitration_id
         if can_id == self.ids["FertSetpoint"]:

@@ -112,7 +112,13 @@ def test_plugin_passes_a_good_dut(tmp_path: Path) -> None:
     assert proc.returncode == 0, proc.stdout + proc.stderr
     record = json.loads((tmp_path / "q" / "record.json").read_text())
     assert record["verdict"] == "pass"
-    assert [m["outcome"] for m in record["measurements"]] == ["pass", "pass"]
+    suites = [m for m in record["measurements"] if not m["name"].startswith("bus.")]
+    assert [m["outcome"] for m in suites] == ["pass", "pass"]
+    # every run also carries its bus conformance (hil.conformance), and the toy DUT conforms
+    bus = [m for m in record["measurements"] if m["name"].startswith("bus.")]
+    assert {"bus.undeclared_frames", "bus.bootup.unexpected", "bus.share"} <= \
+        {m["name"] for m in bus}
+    assert {m["outcome"] for m in bus} == {"pass"}
 
 
 @pytest.mark.parametrize(("suite", "message"), [

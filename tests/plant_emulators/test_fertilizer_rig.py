@@ -152,7 +152,10 @@ def test_a_canopen_master_reads_and_writes_the_analog_module(tmp_path: Path) -> 
 
 
 class _Quiet(PiFlowController):
-    """Sends nothing: the SDO master is the only one driving the module."""
+    """Sends nothing, not even its boot-up: the SDO master is the only one driving the module."""
+
+    def on_start(self) -> list[can.Message]:
+        return []
 
     def on_frame(self, msg: can.Message) -> list[can.Message]:
         return []
