@@ -30,15 +30,31 @@ RETURN_S = 12.0            # fault-saturation-recovery: the target drops back to
 RETURN_TARGET_GPS = 34.0
 
 
-@pytest.mark.parametrize(("scenario", "measurement"), [
-    ("fault-sensor-silent", "flow.fault.sensor_dropout.accuracy"),
-    ("fault-sensor-garbage", "flow.fault.sensor_garbage.accuracy"),
-])
-def test_sensor_faults(hil_run, hil_measure, scenario: str, measurement: str) -> None:
-    result = hil_run(scenario)
+#: fault scenario -> (measurement, what a controller must do about it)
+SENSOR_FAULTS = {
+    # no usable number: nothing at all, or a number the module itself flags as invalid
+    "silent": ("flow.fault.sensor_dropout.accuracy", "notice the silence (stale reports)"),
+    "baseline-lost": ("flow.fault.sensor_dropout.accuracy",
+                      "drop a report with BaselineReady cleared (it reads ~65 % of the flow)"),
+    "overrange": ("flow.fault.sensor_dropout.accuracy",
+                  "drop a report with AdcOverrange set (it reads ~70 % of the flow)"),
+    # numbers the meter cannot be delivering
+    "garbage": ("flow.fault.sensor_garbage.accuracy", "reject values out of the valid range"),
+    "implausible": ("flow.fault.sensor_garbage.accuracy",
+                    "reject a row reading 4x the flow: more than the meter delivers at the "
+                    "target"),
+}
+
+
+@pytest.mark.parametrize("fault", sorted(SENSOR_FAULTS))
+def test_sensor_faults(hil_run, hil_measure, fault: str) -> None:
+    measurement, duty = SENSOR_FAULTS[fault]
+    result = hil_run(f"fault-sensor-{fault}")
     delivered, target = delivered_and_target_g(result)
-    hil_measure(measurement, accuracy_theta(target, delivered), conditions={"row": 2},
-                run=result, note=f"weighed {delivered:.1f} g of {target:.1f} g")
+    hil_measure(measurement, accuracy_theta(target, delivered),
+                conditions={"row": 2, "fault": fault.replace("-", "_")}, run=result,
+                note=f"weighed {delivered:.1f} g of {target:.1f} g; the controller must "
+                     f"{duty}")
 
 
 def test_speed_loss(hil_run, hil_measure) -> None:
