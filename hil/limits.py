@@ -11,10 +11,26 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class MeasurementSpec:
+    """A measurement of the catalogue. ``low``/``high``: the limit it gets from the rig's
+    physics when a profile sets none (a profile's own limit replaces it)."""
+
     name: str
     unit: str
     rig: str
     description: str
+    low: float | None = None
+    high: float | None = None
+
+
+#: flow.field.transient_lag, from the rig's physics. The delays a controller cannot avoid
+#: between a change of ground speed and the meter's flow: the Hall node averages the pulse
+#: periods of the last 0.25 s (mean age 0.125 s) and reports every 0.1 s (+0.05 s on average),
+#: the controller steps every 0.1 s (+0.05 s), the analog module and the motor follow in
+#: ~0.01 s: ~0.24 s in all. A lag of 0.5 s is twice that; at [F]'s field rate (M = 200 kg/hm2,
+#: D = 3 m) it costs 0.1·M·D·Δv·0.5 s = 30·Δv g per speed change, 33 g (0.55 % of a 60 s
+#: run at 6 km/h) for a headland slow-down or acceleration between 6 and 2 km/h: a fifth of
+#: [F]'s field error budget (2.5 %: accuracy >= 97.5 %) spent on each headland manoeuvre.
+_TRANSIENT_LAG_LIMIT_S = 0.5
 
 
 _SPECS = (
@@ -32,6 +48,11 @@ _SPECS = (
                     "[F] eq. 15 over a 50 s bench run against the weighed mass"),
     MeasurementSpec("flow.field.accuracy", "%", "fertilizer",
                     "[F] eq. 15 over a 60 s field run against the weighed mass"),
+    MeasurementSpec("flow.field.transient_lag", "s", "fertilizer",
+                    "mass error over the speed transients of field-headland (headland "
+                    "slow-down and acceleration, speed steps), in seconds of the target "
+                    "flow's change: a controller following speed through a lag of tau reads "
+                    "tau", high=_TRANSIENT_LAG_LIMIT_S),
     MeasurementSpec("flow.comparison.accuracy_gain", "pp", "fertilizer",
                     "bench accuracy of the DUT minus that of the constant-speed baseline"),
     MeasurementSpec("flow.fault.sensor_dropout.accuracy", "%", "fertilizer",
@@ -106,3 +127,10 @@ def known_measurement(name: str, rig: str) -> bool:
 
 def unit_of(name: str) -> str:
     return MEASUREMENTS[name].unit
+
+
+def default_limit(name: str) -> tuple[float | None, float | None]:
+    """The (low, high) limit of ``name`` from the rig's physics, used when a DUT profile sets
+    none; (None, None) when the catalogue has none."""
+    spec = MEASUREMENTS[name]
+    return spec.low, spec.high

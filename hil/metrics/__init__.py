@@ -31,8 +31,11 @@ from hil.metrics.depth import (
 from hil.metrics.step import StepMetrics, recovery_time, smooth, step_response
 from hil.metrics.timing import TimingSummary, merge_timing, timing_summary
 from hil.metrics.tracking import TrackingStats, tracking_error
+from hil.metrics.transients import TransientLag, transient_lag
 
 __all__ = [
+    "TransientLag",
+    "transient_lag",
     "AccuracyResult",
     "DepthSample",
     "DepthStats",
