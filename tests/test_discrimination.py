@@ -2,9 +2,8 @@
 suites, and each must-fail profile (``dut_profiles/must_fail/fertilizer-*.toml``) fails them on
 the measurement its defect breaks.
 
-Each case is ``hil qualify PROFILE --bus inline -k "flow_step or bench_accuracy or
-dut_silence"`` in a subprocess (the way a user's CI meets it), judged from its
-``record.json``. The depth profiles have their own file
+Each case is ``hil qualify PROFILE --bus inline -k SELECTION`` in a subprocess (the way a
+user's CI meets it), judged from its ``record.json``. The depth profiles have their own file
 (``tests/test_suites_depth_discrimination.py``).
 """
 
@@ -23,7 +22,8 @@ from hil.dut.profile import load_profile
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "dut_profiles" / "fertilizer-piecewise-pid-daemon.toml"
 MUST_FAIL = ROOT / "dut_profiles" / "must_fail"
-SELECTION = "flow_step or bench_accuracy or dut_silence"
+SELECTION = ("flow_step or bench_accuracy or dut_silence or sensor_faults or speed_loss or "
+             "saturation_recovery or field_transients")
 NOT_PASSED = {"fail", "error"}
 
 #: profile stem -> measurement -> how many of its conditions (at least) must not pass
@@ -49,7 +49,32 @@ EXPECTED: dict[str, dict[str, int]] = {
                                       "flow.step.steady_state_error": 1},
     # integrates any error: passes every step test, winds up while its wire is cut
     "fertilizer-winds-up-daemon": {"flow.silence.recovery_time": 1},
+    # keeps the meter at 1 V while the machine stands in field-stop-go (~220 g)
+    "fertilizer-meters-through-stop-daemon": {"flow.fault.speed_loss.overdelivery": 1},
+    # averages in a row that flags its number invalid (BaselineReady cleared, AdcOverrange)
+    "fertilizer-ignores-sensor-flags-daemon": {"flow.fault.sensor_dropout.accuracy": 2},
+    # averages in a row reading 4x the flow (and, a PI over every error, winds up while cut)
+    "fertilizer-no-plausibility-daemon": {"flow.fault.sensor_garbage.accuracy": 2,
+                                          "flow.silence.recovery_time": 1},
+    # follows ground speed through a 2 s low-pass: ~1.9 s of mass lag in field-headland
+    "fertilizer-speed-lowpass-2s-daemon": {"flow.field.transient_lag": 1},
+    # reads the setpoint once: stays at 90 g/s after the target returns to 34 g/s
+    "fertilizer-latched-setpoint-daemon": {"flow.fault.saturation.recovery_time": 1},
 }
+
+
+def _header_names(path: Path) -> set[str]:
+    """The measurements a must-fail profile's ``# must-fail:`` header names."""
+    return {n.strip() for line in path.read_text().splitlines()
+            if line.startswith("# must-fail:")
+            for n in line.removeprefix("# must-fail:").split(",") if n.strip()}
+
+
+def test_every_must_fail_header_is_checked_here() -> None:
+    """What a fertilizer profile's header says it fails is what this file checks it fails
+    (tests/test_suites_coverage.py counts the headers)."""
+    for name, expected in EXPECTED.items():
+        assert _header_names(MUST_FAIL / f"{name}.toml") <= set(expected), name
 
 
 def _qualify(profile: Path, out: Path) -> tuple[subprocess.CompletedProcess[str],

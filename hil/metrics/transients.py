@@ -45,7 +45,7 @@ class TransientLag(DictMixin):
     mass_error_pct: float
     """Σ |mass error| / Σ target mass over the windows, %."""
     window_errors_g: tuple[float, ...]
-    """Signed mass error (delivered - target) per window (g, in the unit of the flows × s)."""
+    """Signed mass error (delivered - target) per window (the flows' unit times s: g)."""
     window_steps_gps: tuple[float, ...]
     """Signed change of the target flow across each window."""
 

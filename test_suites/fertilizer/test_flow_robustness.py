@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hil.metrics import accuracy_theta, recovery_time, step_response
+from hil.metrics import accuracy_theta, judged_recovery, recovery_time, step_response
 from test_suites.fertilizer.traces import (
     TRUE_FLOW_FILTER,
     delivered_and_target_g,
@@ -75,8 +75,9 @@ def test_saturation_recovery(hil_run, hil_measure) -> None:
     # the true flow as the step tests judge it (mass per second: a centred 1 s mean)
     m = step_response(t, flow, t0=RETURN_S, target=RETURN_TARGET_GPS,
                       **TRUE_FLOW_FILTER)
-    hil_measure("flow.fault.saturation.recovery_time", m.response_time_s, run=result,
-                note="; ".join(m.notes))
+    value, never = judged_recovery(m.response_time_s, t, t0=RETURN_S)
+    hil_measure("flow.fault.saturation.recovery_time", value, run=result,
+                note="; ".join([never, *m.notes] if never else m.notes))
 
 
 RESTART_S = 13.0           # fault-dut-restart: the controller is power-cycled here
@@ -91,8 +92,10 @@ def test_dut_restart(hil_run, hil_measure) -> None:
     recovery = recovery_time(t, flow, t0=RESTART_S, target=RESTART_TARGET_GPS,
                              **TRUE_FLOW_FILTER)
     restarts = [e for e in result.record["events"] if e["kind"] == "dut-restart"]
+    recovery, never = judged_recovery(recovery, t, t0=RESTART_S)
     hil_measure("flow.restart.recovery_time", recovery, run=result,
-                note=f"{len(restarts)} restart(s); 0 s: the flow never left the ±5 % band")
+                note=never or f"{len(restarts)} restart(s); 0 s: the flow never left the "
+                              "±5 % band")
 
 
 SILENCE_END_S = 18.0       # fault-controller-silent-recovery: the wire is reconnected here
@@ -107,5 +110,7 @@ def test_dut_silence(hil_run, hil_measure) -> None:
     t, flow = row_mean(result, "flow_at_meter")
     recovery = recovery_time(t, flow, t0=SILENCE_END_S, target=SILENCE_TARGET_GPS,
                              **TRUE_FLOW_FILTER)
+    recovery, never = judged_recovery(recovery, t, t0=SILENCE_END_S)
     hil_measure("flow.silence.recovery_time", recovery, run=result,
-                note="5 s of cut wire from 13 s; the flow stops while the wire is cut")
+                note="5 s of cut wire from 13 s; the flow stops while the wire is cut"
+                     + (f"; {never}" if never else ""))

@@ -11,6 +11,8 @@ rig's own delays.
 
 from __future__ import annotations
 
+import itertools
+
 import pytest
 
 from hil.metrics import transient_lag
@@ -27,7 +29,7 @@ def transient_windows(profile: tuple[tuple[float, float], ...], end_s: float,
                       ) -> list[tuple[float, float]]:
     """One (start, end) window per run of changing breakpoints of a speed profile."""
     changes: list[list[float]] = []
-    for (t0, v0), (t1, v1) in zip(profile, profile[1:], strict=False):
+    for (t0, v0), (t1, v1) in itertools.pairwise(profile):
         if v1 == v0:
             continue
         if changes and changes[-1][1] == t0:
