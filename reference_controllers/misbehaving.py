@@ -20,7 +20,18 @@ break. Defects (``--defect KIND:ARG``):
   T seconds before the target flow is computed (meant to smooth the Hall node's jitter): the
   target lags every speed change by ~T;
 * ``latched-setpoint`` — fertilizer: the target is read from the first FertSetpoint frame
-  that enables metering and never again (a "copy on enable" that misses later changes).
+  that enables metering and never again (a "copy on enable" that misses later changes);
+  sowing depth: the same with the first DepthSetpoint that switches control on;
+* ``inverted-polarity`` — sowing depth: the sign of the velocity command is inverted (the
+  drive's polarity, or the cylinder's direction, taken the wrong way round at commissioning):
+  every correction drives the roller the wrong way, to an end stop;
+* ``needs-enable-edge`` — fertilizer: metering starts on a rising edge of the terminal's
+  Enable only; after a restart mid-run Enable is already 1, so the meter stays stopped;
+* ``no-fault-reset`` — sowing depth: the CiA 402 master never sets the fault-reset bit
+  (controlword bit 7): a drive that tripped stays in Fault;
+* ``holds-command-at-standstill`` — sowing depth: when control is switched off (no ground
+  speed) the last velocity command is kept instead of 0, so the roller keeps moving while
+  the machine stands.
 
 ::
 
@@ -229,22 +240,125 @@ class SpeedLowpass(_Wrapper):
         return self._inner_step(msg)
 
 
+def _depth_controller(inner: Controller, kind: str) -> Any:
+    """The reference depth adapter inside ``inner``."""
+    from reference_controllers.sowing_depth.adapter import DepthController
+
+    if not isinstance(inner, DepthController):
+        raise ValueError(f"{kind} is a sowing-depth defect; {inner.name} is not a depth "
+                         f"controller")
+    return inner
+
+
 class LatchedSetpoint(_Wrapper):
-    """The first enabling FertSetpoint is the only one the controller ever reads."""
+    """The first setpoint frame that switches control on is the only one ever read."""
 
     def __init__(self, inner: Controller, period_s: float, _arg: None = None) -> None:
         super().__init__(inner, period_s)
-        self.flow = _flow_controller(inner, "latched-setpoint")
-        self.setpoint_id = self.flow.db.frame_id("FertSetpoint")
+        from reference_controllers.fertilizer.adapter import FlowController
+
         self.latched: can.Message | None = None
+        if isinstance(inner, FlowController):
+            self.setpoint_id = inner.db.frame_id("FertSetpoint")
+            self.enables = lambda msg: bool(inner.db.decode(msg)[1].get("Enable", 0))
+        else:
+            depth = _depth_controller(inner, "latched-setpoint")
+            self.setpoint_id = depth.ids["setpoint"]
+
+            def enables(msg: can.Message) -> bool:
+                sp = depth.codec.decode(msg)
+                return bool(sp.enable == "on" and sp.mode == "automatic")
+            self.enables = enables
+
+    def on_frame(self, msg: can.Message) -> list[can.Message]:
+        if msg.arbitration_id == self.setpoint_id:
+            if self.latched is not None:
+                msg = self.latched
+            elif self.enables(msg):
+                self.latched = msg
+        return super().on_frame(msg)
+
+
+class InvertedPolarity(_Wrapper):
+    """The depth loop's velocity command goes out with its sign inverted."""
+
+    def __init__(self, inner: Controller, period_s: float, _arg: None = None) -> None:
+        super().__init__(inner, period_s)
+        core = _depth_controller(inner, "inverted-polarity").core
+        step = core.step
+
+        def inverted(*args: Any, **kwargs: Any) -> Any:
+            speed, *gains = step(*args, **kwargs)
+            return (-speed, *gains)
+        core.step = inverted
+
+
+class NeedsEnableEdge(_Wrapper):
+    """Enable counts only after the controller has seen it 0 (an edge-triggered enable)."""
+
+    def __init__(self, inner: Controller, period_s: float, _arg: None = None) -> None:
+        super().__init__(inner, period_s)
+        self.flow = _flow_controller(inner, "needs-enable-edge")
+        self.setpoint_id = self.flow.db.frame_id("FertSetpoint")
+        self.armed = False
 
     def on_frame(self, msg: can.Message) -> list[can.Message]:
         if msg.arbitration_id == self.setpoint_id and not msg.is_extended_id:
-            if self.latched is not None:
-                msg = self.latched
-            elif self.flow.db.decode(msg)[1].get("Enable", 0):
-                self.latched = msg
+            message = self.flow.db.message("FertSetpoint")
+            signals = dict(message.decode(bytes(msg.data), decode_choices=False,
+                                          scaling=False))
+            if not signals.get("Enable", 0):
+                self.armed = True
+            elif not self.armed:
+                signals["Enable"] = 0
+                msg = can.Message(arbitration_id=msg.arbitration_id, is_extended_id=False,
+                                  data=message.encode(signals, scaling=False, strict=False),
+                                  timestamp=msg.timestamp)
         return super().on_frame(msg)
+
+
+class NoFaultReset(_Wrapper):
+    """The controlword's fault-reset bit (7) is cleared in every RPDO2 the master sends."""
+
+    def __init__(self, inner: Controller, period_s: float, _arg: None = None) -> None:
+        super().__init__(inner, period_s)
+        depth = _depth_controller(inner, "no-fault-reset")
+        pdo = depth.drive.rpdo[2]
+        self.cob_id = pdo.cob_id
+        offsets = [v.offset for v in pdo.map if v.name == "Controlword"]
+        if len(offsets) != 1 or offsets[0] % 8:
+            raise ValueError("no-fault-reset: RPDO2 does not map the controlword on a byte")
+        self.byte = offsets[0] // 8
+
+    def on_step(self, msg: can.Message | None) -> list[can.Message]:
+        out = []
+        for frame in self._inner_step(msg):
+            if frame.arbitration_id == self.cob_id and len(frame.data) > self.byte:
+                data = bytearray(frame.data)
+                data[self.byte] &= 0x7F
+                frame = can.Message(arbitration_id=frame.arbitration_id,
+                                    is_extended_id=frame.is_extended_id, data=bytes(data),
+                                    timestamp=frame.timestamp)
+            out.append(frame)
+        return out
+
+
+class HoldsCommandAtStandstill(_Wrapper):
+    """Switched off (no ground speed), the depth loop repeats its last velocity, not 0."""
+
+    def __init__(self, inner: Controller, period_s: float, _arg: None = None) -> None:
+        super().__init__(inner, period_s)
+        core = _depth_controller(inner, "holds-command-at-standstill").core
+        step = core.step
+        last = [0.0]
+
+        def holding(target: float, depth: float, valid: bool, enabled: bool) -> Any:
+            speed, *gains = step(target, depth, valid, enabled)
+            if enabled:
+                last[0] = speed
+                return (speed, *gains)
+            return (last[0], *gains)
+        core.step = holding
 
 
 #: kind -> (class, the argument's type; None: the kind takes no argument)
@@ -256,6 +370,10 @@ DEFECTS: dict[str, tuple[type[_Wrapper], Callable[[str], Any] | None]] = {
     "no-plausibility": (NoPlausibility, None),
     "speed-lowpass": (SpeedLowpass, float),
     "latched-setpoint": (LatchedSetpoint, None),
+    "inverted-polarity": (InvertedPolarity, None),
+    "needs-enable-edge": (NeedsEnableEdge, None),
+    "no-fault-reset": (NoFaultReset, None),
+    "holds-command-at-standstill": (HoldsCommandAtStandstill, None),
 }
 
 
