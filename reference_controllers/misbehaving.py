@@ -13,6 +13,8 @@ break. Defects (``--defect KIND:ARG``):
   keeps turning while the machine stands (the compensation should skip a zero target);
 * ``ignores-sensor-flags`` — fertilizer: the firmware reads a flow module's Flow and never its
   status bits, so a report with BaselineReady cleared or AdcOverrange set is used as valid;
+  sowing depth: the inclinometer's X voltage is used whatever INC_X_Status says (an open
+  circuit's 0 mV reads as a 270 mm deep seed);
 * ``no-plausibility`` — fertilizer: no plausibility check of the reported flow (the
   reference's ``Flow <= 3·Q + 5`` g/s): a row reading far above anything the meter can
   deliver is averaged in;
@@ -182,20 +184,34 @@ class MetersThroughStop(_Wrapper):
 
 
 class IgnoresSensorFlags(_Wrapper):
-    """Every flow report is taken as BaselineReady = 1, AdcOverrange = 0."""
+    """Every flow report is taken as BaselineReady = 1, AdcOverrange = 0; every inclinometer
+    frame as INC_X_Status = ok."""
 
     def __init__(self, inner: Controller, period_s: float, _arg: None = None) -> None:
         super().__init__(inner, period_s)
-        self.flow = _flow_controller(inner, "ignores-sensor-flags")
+        from reference_controllers.fertilizer.adapter import FlowController
+
+        # frame id -> (cantools message, the status signals and the values that say "good")
+        self.rewrite: dict[int, tuple[Any, dict[str, int]]] = {}
+        if isinstance(inner, FlowController):
+            for can_id, row in inner.flow_rows.items():
+                self.rewrite[can_id] = (inner.db.message(f"FlowModule{row}"),
+                                        {"BaselineReady": 1, "AdcOverrange": 0})
+        else:
+            depth = _depth_controller(inner, "ignores-sensor-flags")
+            incl = depth.ids["incl"]
+            self.rewrite[incl] = (depth.codec.db.get_message_by_frame_id(incl),
+                                  {"INC_X_Status": 0})
 
     def on_frame(self, msg: can.Message) -> list[can.Message]:
-        row = self.flow.flow_rows.get(msg.arbitration_id)
-        if row is not None and not msg.is_extended_id:
-            message = self.flow.db.message(f"FlowModule{row}")
+        found = self.rewrite.get(msg.arbitration_id)
+        if found is not None:
+            message, good = found
             signals = dict(message.decode(bytes(msg.data), decode_choices=False,
                                           scaling=False))
-            signals.update(BaselineReady=1, AdcOverrange=0)
-            msg = can.Message(arbitration_id=msg.arbitration_id, is_extended_id=False,
+            signals.update(good)
+            msg = can.Message(arbitration_id=msg.arbitration_id,
+                              is_extended_id=msg.is_extended_id,
                               data=message.encode(signals, scaling=False, strict=False),
                               timestamp=msg.timestamp)
         return super().on_frame(msg)

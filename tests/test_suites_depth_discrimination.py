@@ -79,6 +79,13 @@ EXPECTED: dict[str, dict[tuple[str, str], tuple[tuple[str, ...] | None, ...]]] =
         ("steady_state_error", "sensed"): (("fail",), ("fail",), None),
         ("steady_state_error", "true"): (("fail",), ("fail",), None),
     },
+    # the reference's step response: its defect shows only when the inclinometer's wire breaks
+    "sowing-depth-ignores-sensor-flags-daemon": {
+        ("response_time", "sensed_paired"): (("pass",),) * 3,
+        ("overshoot", "sensed_paired"): (("pass",),) * 3,
+        ("steady_state_error", "sensed"): (("pass",),) * 3,
+        ("steady_state_error", "true"): (("pass",),) * 3,
+    },
     # every correction the wrong way: the roller sits at its shallow end stop (~0 mm)
     "sowing-depth-inverted-polarity-daemon": {
         ("response_time", "sensed_paired"): (NOT_PASSED,) * 3,
@@ -112,6 +119,8 @@ FAULT_EXPECTED: dict[str, tuple[tuple[str, ...], ...]] = {
     "sowing-depth-sluggish-daemon": (PASS,) * 8 + (FAIL,),
     # integrates the frozen or vanished depth: the roller runs to its end stop
     "sowing-depth-trusts-frozen-sensor-daemon": (FAIL, PASS, FAIL) + (PASS,) * 6,
+    # reads the broken wire's 0 mV (status "below range") as a 270 mm deep seed
+    "sowing-depth-ignores-sensor-flags-daemon": (PASS,) * 3 + (FAIL,) + (PASS,) * 5,
     # at its end stop in the fault runs and their twins alike: the pairing alone reads 0, the
     # absolute tracking around the fault (within 10 mm of the target) fails every one
     "sowing-depth-inverted-polarity-daemon": (FAIL,) * 6 + (NEVER_SETTLES,) * 2 + (FAIL,),
