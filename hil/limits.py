@@ -63,9 +63,13 @@ _SPECS = (
     MeasurementSpec("flow.comparison.accuracy_gain", "pp", "fertilizer",
                     "bench accuracy of the DUT minus that of the constant-speed baseline"),
     MeasurementSpec("flow.fault.sensor_dropout.accuracy", "%", "fertilizer",
-                    "accuracy while one flow module is silent"),
+                    "accuracy while one flow module gives no usable number: silent, or "
+                    "flagging its number invalid (BaselineReady cleared, AdcOverrange set); "
+                    "condition fault"),
     MeasurementSpec("flow.fault.sensor_garbage.accuracy", "%", "fertilizer",
-                    "accuracy while one flow module reports garbage"),
+                    "accuracy while one flow module reports numbers the meter cannot be "
+                    "delivering: out of the valid range, or 4x the flow with good flags; "
+                    "condition fault"),
     MeasurementSpec("flow.fault.speed_loss.overdelivery", "g", "fertilizer",
                     "fertilizer delivered while the machine stands still"),
     MeasurementSpec("flow.fault.saturation.recovery_time", "s", "fertilizer",
@@ -101,16 +105,19 @@ _SPECS = (
                     "rod travel while the machine stands still"),
     MeasurementSpec("depth.fault.sensor.deviation", "mm", "sowing_depth",
                     "RMS, over a sensor fault, of the true depth minus that of the same run "
-                    "without the fault (same seed)"),
+                    "without the fault (same seed), or of the run's own excess beyond 10 mm "
+                    "from the target where that is larger"),
     MeasurementSpec("depth.fault.saturation.recovery_time", "s", "sowing_depth",
                     "time after the target returns into reach (5 s at 90 mm) until the true "
-                    "depth, paired with its run at 30 mm throughout, is back in +/-5 %"),
+                    "depth, paired with its run at 30 mm throughout, is back in +/-5 % and its "
+                    "own within 10 mm (a run that never followed the target fails)"),
     MeasurementSpec("depth.silence.recovery_time", "s", "sowing_depth",
                     "time after the DUT's frames reach the rig again (5 s of cut wire) until "
-                    "the true depth, paired with its run without the cut, is back in +/-5 %"),
+                    "the true depth, paired with its run without the cut, is back in +/-5 % "
+                    "and its own within 10 mm"),
     MeasurementSpec("depth.restart.recovery_time", "s", "sowing_depth",
                     "time after a DUT restart until the true depth, paired with its run "
-                    "without the restart, is back in +/-5 %"),
+                    "without the restart, is back in +/-5 % and its own within 10 mm"),
     MeasurementSpec("depth.busload.pass_rate", "%", "sowing_depth",
                     "pass rate of a field run on a bus loaded near its bit rate"),
     MeasurementSpec("depth.busload.inlier_cv", "%", "sowing_depth",

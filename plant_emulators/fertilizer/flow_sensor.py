@@ -524,9 +524,7 @@ class FlowSensor:
                 grams = float(self._fault_rng.uniform(lo, _RAW_MAX))
                 flow = float(self._fault_rng.uniform(lo, _RAW_MAX))
             elif self.report_fault is not None and status & _BASELINE_READY:
-                gain, status = self._faulty_report(flow, status, now_s)
-                grams *= gain
-                flow *= gain
+                grams, flow, status = self._faulty_report(grams, flow, status, now_s)
             report = FlowReport(now_s, grams, flow, self._counter, _STATUS[status], span_rig_s)
             self._counter = (self._counter + 1) % _COUNTER_MODULO
             self._last = report
@@ -541,23 +539,27 @@ class FlowSensor:
         self._fault_since_s = time_s
         self._stuck_at_gps = None
 
-    def _faulty_report(self, flow: float, status: int, now_s: float) -> tuple[float, int]:
-        """The gain on this report's numbers and its status bits under ``report_fault``."""
+    def _faulty_report(self, grams: float, flow: float, status: int,
+                       now_s: float) -> tuple[float, float, int]:
+        """This report's mass, flow and status bits under ``report_fault``."""
         kind = self.report_fault
+        if kind == "stuck_mid":
+            # the reading freezes at a mid-range number; the counter keeps counting
+            if self._stuck_at_gps is None:
+                self._stuck_at_gps = STUCK_MID_FRACTION * flow
+            ratio = grams / flow if flow else 0.0          # the window's length, s
+            return self._stuck_at_gps * ratio, self._stuck_at_gps, status
         if kind == "baseline_lost":
-            return BASELINE_LOST_GAIN, status & ~_BASELINE_READY
-        if kind == "overrange":
-            return OVERRANGE_GAIN, status | _ADC_OVERRANGE
-        if kind == "implausible":
-            return IMPLAUSIBLE_GAIN, status
-        if kind == "gain_step":
-            return GAIN_STEP, status
-        if kind == "drift":
-            return 1.0 + DRIFT_PER_S * max(0.0, now_s - self._fault_since_s), status
-        # stuck_mid: the reading freezes at a mid-range number (the counter keeps counting)
-        if self._stuck_at_gps is None:
-            self._stuck_at_gps = STUCK_MID_FRACTION * flow
-        return (self._stuck_at_gps / flow if flow > 0 else 0.0), status
+            gain, status = BASELINE_LOST_GAIN, status & ~_BASELINE_READY
+        elif kind == "overrange":
+            gain, status = OVERRANGE_GAIN, status | _ADC_OVERRANGE
+        elif kind == "implausible":
+            gain = IMPLAUSIBLE_GAIN
+        elif kind == "gain_step":
+            gain = GAIN_STEP
+        else:       # drift
+            gain = 1.0 + DRIFT_PER_S * max(0.0, now_s - self._fault_since_s)
+        return grams * gain, flow * gain, status
 
     def take_reports(self) -> list[FlowReport]:
         """Return the reports produced since the last call, oldest first, and forget them."""
