@@ -11,10 +11,32 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class MeasurementSpec:
+    """A measurement of the catalogue. ``low``/``high``: the limit it gets from the rig's
+    physics when a profile sets none (a profile's own limit replaces it)."""
+
     name: str
     unit: str
     rig: str
     description: str
+    low: float | None = None
+    high: float | None = None
+
+
+#: flow.field.transient_lag, from the rig's physics. The delays a controller cannot avoid
+#: between a change of ground speed and the meter's flow: the Hall node averages the pulse
+#: periods of the last 0.25 s (mean age 0.125 s) and reports every 0.1 s (+0.05 s on average),
+#: the controller steps every 0.1 s (+0.05 s), the analog module and the motor follow in
+#: ~0.01 s: ~0.24 s in all. A lag of 0.5 s is twice that; at [F]'s field rate (M = 200 kg/hm2,
+#: D = 3 m) it costs 0.1·M·D·Δv·0.5 s = 30·Δv g per speed change, 33 g (0.55 % of a 60 s
+#: run at 6 km/h) for a headland slow-down or acceleration between 6 and 2 km/h: a fifth of
+#: [F]'s field error budget (2.5 %: accuracy >= 97.5 %) spent on each headland manoeuvre.
+_TRANSIENT_LAG_LIMIT_S = 0.5
+
+#: flow.step.sensed_response_time, from the rig's physics: the true flow's limit ([F]: 1.5 s)
+#: plus what the flow module adds before it can report the new flow: one 1 s window of
+#: readings, and one report period (0.1 s sliding, 1 s in [F]'s block mode, papers.md):
+#: 1.5 + 1 + 1 = 3.5 s in either mode. (The reference reads ~1.2 s, sliding.)
+_SENSED_RESPONSE_LIMIT_S = 3.5
 
 
 _SPECS = (
@@ -23,7 +45,8 @@ _SPECS = (
                     "time from the setpoint step until the true flow enters and stays in "
                     "the +/-5 % band"),
     MeasurementSpec("flow.step.sensed_response_time", "s", "fertilizer",
-                    "as flow.step.response_time, on the flow the sensors report"),
+                    "as flow.step.response_time, on the flow the sensors report",
+                    high=_SENSED_RESPONSE_LIMIT_S),
     MeasurementSpec("flow.step.overshoot", "%", "fertilizer",
                     "peak of the true flow beyond the target, % of the step"),
     MeasurementSpec("flow.step.steady_state_error", "%", "fertilizer",
@@ -32,12 +55,21 @@ _SPECS = (
                     "[F] eq. 15 over a 50 s bench run against the weighed mass"),
     MeasurementSpec("flow.field.accuracy", "%", "fertilizer",
                     "[F] eq. 15 over a 60 s field run against the weighed mass"),
+    MeasurementSpec("flow.field.transient_lag", "s", "fertilizer",
+                    "mass error over the speed transients of field-headland (headland "
+                    "slow-down and acceleration, speed steps), in seconds of the target "
+                    "flow's change: a controller following speed through a lag of tau reads "
+                    "tau", high=_TRANSIENT_LAG_LIMIT_S),
     MeasurementSpec("flow.comparison.accuracy_gain", "pp", "fertilizer",
                     "bench accuracy of the DUT minus that of the constant-speed baseline"),
     MeasurementSpec("flow.fault.sensor_dropout.accuracy", "%", "fertilizer",
-                    "accuracy while one flow module is silent"),
+                    "accuracy while one flow module gives no usable number: silent, or "
+                    "flagging its number invalid (BaselineReady cleared, AdcOverrange set); "
+                    "condition fault"),
     MeasurementSpec("flow.fault.sensor_garbage.accuracy", "%", "fertilizer",
-                    "accuracy while one flow module reports garbage"),
+                    "accuracy while one flow module reports numbers the meter cannot be "
+                    "delivering: out of the valid range, or 4x the flow with good flags; "
+                    "condition fault"),
     MeasurementSpec("flow.fault.speed_loss.overdelivery", "g", "fertilizer",
                     "fertilizer delivered while the machine stands still"),
     MeasurementSpec("flow.fault.saturation.recovery_time", "s", "fertilizer",
@@ -73,16 +105,19 @@ _SPECS = (
                     "rod travel while the machine stands still"),
     MeasurementSpec("depth.fault.sensor.deviation", "mm", "sowing_depth",
                     "RMS, over a sensor fault, of the true depth minus that of the same run "
-                    "without the fault (same seed)"),
+                    "without the fault (same seed), or of the run's own excess beyond 10 mm "
+                    "from the target where that is larger"),
     MeasurementSpec("depth.fault.saturation.recovery_time", "s", "sowing_depth",
                     "time after the target returns into reach (5 s at 90 mm) until the true "
-                    "depth, paired with its run at 30 mm throughout, is back in +/-5 %"),
+                    "depth, paired with its run at 30 mm throughout, is back in +/-5 % and its "
+                    "own within 10 mm (a run that never followed the target fails)"),
     MeasurementSpec("depth.silence.recovery_time", "s", "sowing_depth",
                     "time after the DUT's frames reach the rig again (5 s of cut wire) until "
-                    "the true depth, paired with its run without the cut, is back in +/-5 %"),
+                    "the true depth, paired with its run without the cut, is back in +/-5 % "
+                    "and its own within 10 mm"),
     MeasurementSpec("depth.restart.recovery_time", "s", "sowing_depth",
                     "time after a DUT restart until the true depth, paired with its run "
-                    "without the restart, is back in +/-5 %"),
+                    "without the restart, is back in +/-5 % and its own within 10 mm"),
     MeasurementSpec("depth.busload.pass_rate", "%", "sowing_depth",
                     "pass rate of a field run on a bus loaded near its bit rate"),
     MeasurementSpec("depth.busload.inlier_cv", "%", "sowing_depth",
@@ -131,3 +166,10 @@ def known_measurement(name: str, rig: str) -> bool:
 
 def unit_of(name: str) -> str:
     return MEASUREMENTS[name].unit
+
+
+def default_limit(name: str) -> tuple[float | None, float | None]:
+    """The (low, high) limit of ``name`` from the rig's physics, used when a DUT profile sets
+    none; (None, None) when the catalogue has none."""
+    spec = MEASUREMENTS[name]
+    return spec.low, spec.high

@@ -45,7 +45,7 @@ from hil.dut.build import with_build_id
 from hil.dut.factory import make_dut, profile_run_options
 from hil.dut.profile import DutProfile, load_profile
 from hil.errors import ConfigError, HilError
-from hil.limits import MEASUREMENTS, known_measurement
+from hil.limits import MEASUREMENTS, default_limit, known_measurement
 from hil.measurements import Measurement, Outcome
 from hil.record.recorder import versions
 from hil.rig import Rig, RunOptions, RunResult, load_rig, run_scenario
@@ -234,8 +234,8 @@ class QualificationSession:
             value = math.nan
             note = (note + "; " if note else "") + f"run ended early: {run.record['error']}"
         limit = self.profile.limit(name)
-        m = Measurement(name, float(value), MEASUREMENTS[name].unit,
-                        low=limit.low if limit else None, high=limit.high if limit else None,
+        low, high = (limit.low, limit.high) if limit else default_limit(name)
+        m = Measurement(name, float(value), MEASUREMENTS[name].unit, low=low, high=high,
                         conditions=dict(conditions or {}), note=note,
                         **({"marginal_band": limit.marginal}
                            if limit is not None and limit.marginal is not None else {}))

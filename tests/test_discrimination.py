@@ -2,9 +2,8 @@
 suites, and each must-fail profile (``dut_profiles/must_fail/fertilizer-*.toml``) fails them on
 the measurement its defect breaks.
 
-Each case is ``hil qualify PROFILE --bus inline -k "flow_step or bench_accuracy or
-dut_silence"`` in a subprocess (the way a user's CI meets it), judged from its
-``record.json``. The depth profiles have their own file
+Each case is ``hil qualify PROFILE --bus inline -k SELECTION`` in a subprocess (the way a
+user's CI meets it), judged from its ``record.json``. The depth profiles have their own file
 (``tests/test_suites_depth_discrimination.py``).
 """
 
@@ -23,7 +22,10 @@ from hil.dut.profile import load_profile
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "dut_profiles" / "fertilizer-piecewise-pid-daemon.toml"
 MUST_FAIL = ROOT / "dut_profiles" / "must_fail"
-SELECTION = "flow_step or bench_accuracy or dut_silence"
+SELECTION = ("flow_step or bench_accuracy or dut_silence or sensor_faults or speed_loss or "
+             "saturation_recovery or field_transients or dut_restart")
+#: profile stem -> more of the suites its defect needs (added to SELECTION for it alone)
+EXTRA_SELECTION = {"fertilizer-ignores-setpoint-daemon": "field_accuracy or accuracy_gain"}
 NOT_PASSED = {"fail", "error"}
 
 #: profile stem -> measurement -> how many of its conditions (at least) must not pass
@@ -32,9 +34,12 @@ EXPECTED: dict[str, dict[str, int]] = {
     "fertilizer-dies-after-10s-daemon": {"flow.step.response_time": 3,
                                          "flow.step.steady_state_error": 3,
                                          "flow.bench.accuracy": 3},
-    # runs 30 g/s whatever the terminal says: the accuracy and the steady state are off
+    # runs 30 g/s whatever the terminal says: the accuracy and the steady state are off, in
+    # the field too, and it does worse than the constant-speed baseline
     "fertilizer-ignores-setpoint-daemon": {"flow.step.steady_state_error": 3,
-                                           "flow.bench.accuracy": 3},
+                                           "flow.bench.accuracy": 3,
+                                           "flow.field.accuracy": 3,
+                                           "flow.comparison.accuracy_gain": 1},
     # the feedforward alone on the nominal (uncalibrated) map: the fertilizer's ~3.5 %
     # density deficit is never corrected
     "fertilizer-no-integral-daemon": {"flow.step.steady_state_error": 3,
@@ -46,17 +51,46 @@ EXPECTED: dict[str, dict[str, int]] = {
     # corrections limit-cycle (23 g/s: response ~16 s, overshoot, steady-state error); at
     # 34/44 g/s the feedforward alone lands in the band, and the bench accuracy passes
     "fertilizer-slow-period-daemon": {"flow.step.response_time": 1,
+                                      "flow.step.sensed_response_time": 1,
                                       "flow.step.steady_state_error": 1},
     # integrates any error: passes every step test, winds up while its wire is cut
     "fertilizer-winds-up-daemon": {"flow.silence.recovery_time": 1},
+    # keeps the meter at 1 V while the machine stands in field-stop-go (~220 g)
+    "fertilizer-meters-through-stop-daemon": {"flow.fault.speed_loss.overdelivery": 1},
+    # averages in a row that flags its number invalid (BaselineReady cleared, AdcOverrange)
+    "fertilizer-ignores-sensor-flags-daemon": {"flow.fault.sensor_dropout.accuracy": 2},
+    # averages in a row reading 4x the flow (and, a PI over every error, winds up while cut)
+    "fertilizer-no-plausibility-daemon": {"flow.fault.sensor_garbage.accuracy": 2,
+                                          "flow.silence.recovery_time": 1},
+    # follows ground speed through a 2 s low-pass: ~1.9 s of mass lag in field-headland
+    "fertilizer-speed-lowpass-2s-daemon": {"flow.field.transient_lag": 1},
+    # reads the setpoint once: stays at 90 g/s after the target returns to 34 g/s
+    "fertilizer-latched-setpoint-daemon": {"flow.fault.saturation.recovery_time": 1},
+    # power-cycled mid-run it waits for an Enable edge that never comes: the meter stays off
+    "fertilizer-needs-enable-edge-daemon": {"flow.restart.recovery_time": 1},
 }
 
 
-def _qualify(profile: Path, out: Path) -> tuple[subprocess.CompletedProcess[str],
-                                                dict[str, Any]]:
+def _header_names(path: Path) -> set[str]:
+    """The measurements a must-fail profile's ``# must-fail:`` header names."""
+    return {n.strip() for line in path.read_text().splitlines()
+            if line.startswith("# must-fail:")
+            for n in line.removeprefix("# must-fail:").split(",") if n.strip()}
+
+
+def test_every_must_fail_header_is_checked_here() -> None:
+    """What a fertilizer profile's header says it fails is what this file checks it fails
+    (tests/test_suites_coverage.py counts the headers)."""
+    for name, expected in EXPECTED.items():
+        slow = {"flow.busload.accuracy"} if name == "fertilizer-ignores-setpoint-daemon" else set()
+        assert _header_names(MUST_FAIL / f"{name}.toml") <= set(expected) | slow, name
+
+
+def _qualify(profile: Path, out: Path, selection: str = SELECTION, suite: str | None = None,
+             bus: str = "inline") -> tuple[subprocess.CompletedProcess[str], dict[str, Any]]:
     proc = subprocess.run(
-        [sys.executable, "-m", "hil", "qualify", str(profile), "--bus", "inline",
-         "--out", str(out), "-k", SELECTION, "--quiet"],
+        [sys.executable, "-m", "hil", "qualify", str(profile), "--bus", bus,
+         "--out", str(out), "-k", selection, "--quiet", *(["--suite", suite] if suite else [])],
         capture_output=True, text=True, cwd=ROOT, timeout=600)
     record_path = out / "record.json"
     assert record_path.exists(), proc.stdout + proc.stderr
@@ -65,7 +99,8 @@ def _qualify(profile: Path, out: Path) -> tuple[subprocess.CompletedProcess[str]
 
 def test_every_must_fail_fertilizer_profile_is_covered_and_judged_as_the_reference() -> None:
     reference = load_profile(REFERENCE)
-    profiles = sorted(MUST_FAIL.glob("fertilizer-*.toml"))
+    # the bus-conformance profiles (*-bus-*.toml) are judged by their own tests
+    profiles = sorted(p for p in MUST_FAIL.glob("fertilizer-*.toml") if "-bus-" not in p.stem)
     assert sorted(p.stem for p in profiles) == sorted(EXPECTED)
     for path in profiles:
         profile = load_profile(path)
@@ -84,7 +119,9 @@ def test_reference_passes(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_must_fail_profile_fails_on_its_defect(tmp_path: Path, name: str) -> None:
-    proc, record = _qualify(MUST_FAIL / f"{name}.toml", tmp_path / "q")
+    extra = EXTRA_SELECTION.get(name)
+    proc, record = _qualify(MUST_FAIL / f"{name}.toml", tmp_path / "q",
+                            f"{SELECTION} or {extra}" if extra else SELECTION)
     assert proc.returncode == 1 and record["verdict"] == "fail", proc.stdout + proc.stderr
     for measurement, at_least in EXPECTED[name].items():
         got = [m for m in record["measurements"] if m["name"] == measurement]
@@ -94,3 +131,17 @@ def test_must_fail_profile_fails_on_its_defect(tmp_path: Path, name: str) -> Non
             f"{name}: {measurement} failed {len(bad)} of {len(got)} conditions, expected at "
             f"least {at_least}: " + "; ".join(f"{m['conditions']} = {m['value']} "
                                               f"{m['outcome']}" for m in got))
+
+
+@pytest.mark.slow
+def test_loaded_bus_suite_fails_a_controller_that_ignores_the_setpoint(tmp_path: Path) -> None:
+    """The busload suite (real time, ~55 s) judges accuracy like the bench: a DUT that runs
+    its own target fails it."""
+    proc, record = _qualify(MUST_FAIL / "fertilizer-ignores-setpoint-daemon.toml",
+                            tmp_path / "q", "accuracy_on_a_loaded_bus", suite="busload",
+                            bus="softbus")
+    assert [t["nodeid"] for t in record["tests"]], proc.stdout + proc.stderr
+    if any("invalid bench" in t.get("message", "") for t in record["tests"]):
+        pytest.skip("invalid bench (real-time timing under load): " + proc.stdout[-300:])
+    got = [m for m in record["measurements"] if m["name"] == "flow.busload.accuracy"]
+    assert [m["outcome"] for m in got] == ["fail"], got

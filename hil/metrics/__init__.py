@@ -28,9 +28,16 @@ from hil.metrics.depth import (
     qualified_band,
     sample_depth,
 )
-from hil.metrics.step import StepMetrics, recovery_time, smooth, step_response
+from hil.metrics.step import (
+    StepMetrics,
+    judged_recovery,
+    recovery_time,
+    smooth,
+    step_response,
+)
 from hil.metrics.timing import TimingSummary, merge_timing, timing_summary
 from hil.metrics.tracking import TrackingStats, tracking_error
+from hil.metrics.transients import TransientLag, transient_lag
 
 __all__ = [
     "AccuracyResult",
@@ -40,11 +47,13 @@ __all__ = [
     "StepMetrics",
     "TimingSummary",
     "TrackingStats",
+    "TransientLag",
     "accuracy_theta",
     "delivered_mass",
     "depth_statistics",
     "flow_accuracy",
     "integrate_trace",
+    "judged_recovery",
     "merge_timing",
     "qualified_band",
     "recovery_time",
@@ -54,4 +63,5 @@ __all__ = [
     "target_mass",
     "timing_summary",
     "tracking_error",
+    "transient_lag",
 ]

@@ -74,7 +74,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from hil.metrics._common import DictMixin, as_time
 
-__all__ = ["StepMetrics", "recovery_time", "smooth", "step_response"]
+__all__ = ["StepMetrics", "judged_recovery", "recovery_time", "smooth", "step_response"]
 
 FilterKind = Literal["median", "mean", "none"]
 
@@ -307,3 +307,20 @@ def recovery_time(t: np.ndarray, y: np.ndarray, *, t0: float, target: float,
     if math.isnan(back) or float(ts[-1]) - back < min_hold_s:
         return math.nan
     return back
+
+
+def judged_recovery(value: float, t: np.ndarray, *, t0: float, band: float = 0.05,
+                    min_hold_s: float = 1.0) -> tuple[float, str]:
+    """A recovery time made fit to judge: ``(value, "")`` when it was timed, else the length
+    of the record after ``t0`` (a lower bound of the recovery time: a limit below it fails)
+    and the reason, "never re-entered the ±5 % band within N s".
+
+    A signal that never comes back has failed its recovery; it is not a measurement that
+    could not be made (that is for a run that ended early, which the suites mark apart).
+    """
+    if not math.isnan(value):
+        return value, ""
+    t = np.asarray(t, dtype=float)
+    span = float(t[-1] - t0) if t.size else 0.0
+    return span, (f"never re-entered the ±{band:.0%} band (and stayed {min_hold_s:g} s) "
+                  f"within {span:.1f} s: the value is that bound")

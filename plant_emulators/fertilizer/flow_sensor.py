@@ -152,6 +152,33 @@ _STATUS: tuple[SensorStatus, ...] = tuple(SensorStatus(bits) for bits in range(1
 """Every status, indexed by its bits."""
 
 
+#: Report faults: the module reports on time and its number is wrong but looks plausible.
+#: Those marked (flag) say so in their status bits, as a real module does; the others do not.
+REPORT_FAULTS: dict[str, str] = {
+    "baseline_lost": "(flag) a supply dip reset the module with fertilizer in the pipe: it "
+                     "clears BaselineReady and, until it can measure the empty pipe again, "
+                     "reports against the default baseline: ~65 % of the true flow",
+    "overrange": "(flag) dust caked on the electrodes pushes the capacitance past the "
+                 "AD7746's input range: conversions clip, AdcOverrange is set, and the flow "
+                 "reported is the clipped one, ~60 % of the true flow",
+    "implausible": "the calibration constant k of eq. 10 is corrupted (an EEPROM write cut "
+                   "short): every report reads 4x the true flow, more than the meter can "
+                   "deliver at the target, with good status bits",
+    "gain_step": "the sensitivity steps up 30 % (a wet layer on the electrodes): good status "
+                 "bits, a plausible number",
+    "drift": "the sensitivity drifts up 2 %/s (condensation building up): good status bits",
+    "stuck_mid": "the reading freezes at a mid-range number (60 % of the flow when the fault "
+                 "began; the ADC's last good conversion repeated): good status bits, the "
+                 "counter keeps counting",
+}
+BASELINE_LOST_GAIN = 0.65
+OVERRANGE_GAIN = 0.7
+IMPLAUSIBLE_GAIN = 4.0
+GAIN_STEP = 1.3
+DRIFT_PER_S = 0.02
+STUCK_MID_FRACTION = 0.6
+
+
 class FlowReport(NamedTuple):
     """One report of a flow detection module."""
 
@@ -193,6 +220,9 @@ class FlowSensor:
     garbage : bool
         Fault: reported flow and mass are out of the valid range (above
         ``flow_valid_max_gps``, up to the signal's raw maximum); the counter keeps counting.
+    report_fault : str or None
+        Fault: the module keeps reporting on time, with a number that looks plausible and is
+        wrong (one of :data:`REPORT_FAULTS`; see there what each does). ``None``: healthy.
     vibration_rms_mps2 : float
         Input: RMS vibration of the frame at the module (m/s²); adds capacitance noise.
     """
@@ -219,6 +249,9 @@ class FlowSensor:
         self.stuck = False
         self.silent = False
         self.garbage = False
+        self.report_fault: str | None = None
+        self._fault_since_s = 0.0
+        self._stuck_at_gps: float | None = None
         self.vibration_rms_mps2 = 0.0
 
         conv_s = config.conversion_time_ms / 1000.0
@@ -490,10 +523,43 @@ class FlowSensor:
                 lo = cfg.flow_valid_max_gps
                 grams = float(self._fault_rng.uniform(lo, _RAW_MAX))
                 flow = float(self._fault_rng.uniform(lo, _RAW_MAX))
+            elif self.report_fault is not None and status & _BASELINE_READY:
+                grams, flow, status = self._faulty_report(grams, flow, status, now_s)
             report = FlowReport(now_s, grams, flow, self._counter, _STATUS[status], span_rig_s)
             self._counter = (self._counter + 1) % _COUNTER_MODULO
             self._last = report
         self._pending.append(report)
+
+    def set_report_fault(self, kind: str | None, time_s: float) -> None:
+        """Start the report fault ``kind`` (one of :data:`REPORT_FAULTS`) at ``time_s``, or
+        end it (``None``)."""
+        if kind is not None and kind not in REPORT_FAULTS:
+            raise ValueError(f"unknown report fault {kind!r} ({', '.join(REPORT_FAULTS)})")
+        self.report_fault = kind
+        self._fault_since_s = time_s
+        self._stuck_at_gps = None
+
+    def _faulty_report(self, grams: float, flow: float, status: int,
+                       now_s: float) -> tuple[float, float, int]:
+        """This report's mass, flow and status bits under ``report_fault``."""
+        kind = self.report_fault
+        if kind == "stuck_mid":
+            # the reading freezes at a mid-range number; the counter keeps counting
+            if self._stuck_at_gps is None:
+                self._stuck_at_gps = STUCK_MID_FRACTION * flow
+            ratio = grams / flow if flow else 0.0          # the window's length, s
+            return self._stuck_at_gps * ratio, self._stuck_at_gps, status
+        if kind == "baseline_lost":
+            gain, status = BASELINE_LOST_GAIN, status & ~_BASELINE_READY
+        elif kind == "overrange":
+            gain, status = OVERRANGE_GAIN, status | _ADC_OVERRANGE
+        elif kind == "implausible":
+            gain = IMPLAUSIBLE_GAIN
+        elif kind == "gain_step":
+            gain = GAIN_STEP
+        else:       # drift
+            gain = 1.0 + DRIFT_PER_S * max(0.0, now_s - self._fault_since_s)
+        return grams * gain, flow * gain, status
 
     def take_reports(self) -> list[FlowReport]:
         """Return the reports produced since the last call, oldest first, and forget them."""

@@ -2,7 +2,9 @@
 
 The scenario sets :attr:`GroundSpeedModel.target_speed_mps`. The tractor follows it with a
 first-order response and an acceleration limit, around a smooth random variation (engine droop,
-changing draft: an Ornstein-Uhlenbeck factor filtered by the tractor's response). Three
+changing draft: an Ornstein-Uhlenbeck factor filtered by the tractor's response). Asked to stop
+(target 0), it brakes at the acceleration limit to a standstill, where every speed it reports
+is 0 (the Hall node's after its ``hall_timeout_s``). Three
 speeds are derived from the true one:
 
 * the planter's **ground wheel**, which skids and sinks on loose soil and so travels a few
@@ -306,7 +308,11 @@ class GroundSpeedModel:
                                                             rnoise, radar_gain)
             countdown -= 1
             dv = (v_goal - v) * k_tau
-            if dv > dv_max:
+            if v_goal <= 0.0:
+                # asked to stop: the driver brakes at the field deceleration to a standstill
+                # (a first-order approach would crawl at a few cm/s for ever)
+                dv = -dv_max
+            elif dv > dv_max:
                 dv = dv_max
             elif dv < -dv_max:
                 dv = -dv_max

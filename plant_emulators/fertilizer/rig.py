@@ -22,7 +22,7 @@ from plant_emulators.fertilizer.devices import (
     TerminalDevice,
     TractorSpeedDevice,
 )
-from plant_emulators.fertilizer.flow_sensor import FlowSensor
+from plant_emulators.fertilizer.flow_sensor import REPORT_FAULTS, FlowSensor
 from plant_emulators.fertilizer.frames import FertilizerDatabase
 from plant_emulators.fertilizer.ground_speed import GroundSpeedModel
 from plant_emulators.fertilizer.physics import FertilizerPlant
@@ -48,6 +48,8 @@ class FertilizerRig(Rig):
         "flow_sensor_silent": "the flow module of row <target> sends nothing",
         "flow_sensor_stale": "the flow module of row <target> repeats its last report",
         "flow_sensor_garbage": "the flow module of row <target> reports garbage",
+        **{f"flow_sensor_{kind}": f"the flow module of row <target>: {what}"
+           for kind, what in REPORT_FAULTS.items()},
         "motor_stall": "the meter shaft jams",
         "controller_silent": "no frame of the controller reaches the rig (cut wire)",
     }
@@ -177,8 +179,13 @@ class FertilizerRig(Rig):
                 module.silent = active
             elif name == "flow_sensor_stale":
                 module.stale = active
-            else:
+            elif name == "flow_sensor_garbage":
                 module.sensor.garbage = active
+            elif name.removeprefix("flow_sensor_") in REPORT_FAULTS:
+                module.sensor.set_report_fault(
+                    name.removeprefix("flow_sensor_") if active else None, time_s)
+            else:
+                raise ConfigError(f"unknown fault {name!r}", key=name)
         elif name == "motor_stall":
             self.plant.stalled = active
         elif name == "controller_silent":

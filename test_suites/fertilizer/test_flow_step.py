@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import pytest
 
-from hil.metrics import step_response
+from hil.metrics import judged_recovery, step_response
 from test_suites.fertilizer.traces import ENABLE_S, STEADY_WINDOW_S, TRUE_FLOW_FILTER, row_mean
 
 pytestmark = pytest.mark.hil_rig("fertilizer")
@@ -27,8 +27,10 @@ def test_flow_step(hil_run, hil_measure, target_gps: int) -> None:
     t, true_flow = row_mean(result, "flow_at_meter")
     m = step_response(t, true_flow, t0=ENABLE_S, target=float(target_gps), y0=0.0, **FILTER,
                       steady_window_s=STEADY_WINDOW_S)
-    note = "; ".join(m.notes)
-    hil_measure("flow.step.response_time", m.response_time_s, conditions=conditions,
+    # a response that never comes has failed (the value: the record after the step, a bound)
+    response, never = judged_recovery(m.response_time_s, t, t0=ENABLE_S)
+    note = "; ".join([never, *m.notes] if never else m.notes)
+    hil_measure("flow.step.response_time", response, conditions=conditions,
                 run=result, note=note)
     hil_measure("flow.step.overshoot", m.overshoot_pct, conditions=conditions, run=result)
     hil_measure("flow.step.steady_state_error", m.steady_state_error_pct,
@@ -36,5 +38,6 @@ def test_flow_step(hil_run, hil_measure, target_gps: int) -> None:
     t, sensed = row_mean(result, "sensed_flow")
     s = step_response(t, sensed, t0=ENABLE_S, target=float(target_gps), y0=0.0,
                       filter_kind="none")
-    hil_measure("flow.step.sensed_response_time", s.response_time_s, conditions=conditions,
-                run=result, note="; ".join(s.notes))
+    sensed_response, never = judged_recovery(s.response_time_s, t, t0=ENABLE_S)
+    hil_measure("flow.step.sensed_response_time", sensed_response, conditions=conditions,
+                run=result, note="; ".join([never, *s.notes] if never else s.notes))

@@ -84,7 +84,7 @@ import math
 import numpy as np
 import pytest
 
-from hil.metrics import smooth, step_response
+from hil.metrics import judged_recovery, smooth, step_response
 from hil.rig import RunResult
 from hil.rig.scenario import Scenario
 from test_suites.sowing_depth.pairing import hold_twin, paired
@@ -169,6 +169,10 @@ def test_depth_step(hil_run, hil_measure, hil_rig, t0: float, t_end: float, star
             notes.append(f"the paired signal still varies by {residual:.3f} mm SD at the end: "
                          f"under 3 SD the ±{BAND:.0%} band cannot resolve the response (a DUT "
                          "that keeps moving, or a pair that does not share its disturbance)")
+        # a response that never comes has failed (the value: the window, a lower bound)
+        response, never = judged_recovery(response, t[t <= t_end], t0=t0, band=BAND)
+        if never:
+            notes.insert(0, never)
     paired = {"from_mm": start_mm, "to_mm": target_mm, "signal": "sensed_paired"}
     hil_measure("depth.step.response_time", response, conditions=paired, run=result,
                 note="; ".join(notes))

@@ -134,9 +134,12 @@ int gs_advance(GroundSpeedCore *gs, long long n, double target)
             f = slow_factors(target, variation, wslip, tslip, rnoise, k.radar_gain);
         }
         countdown -= 1;
-        /* dv = (v_goal - v) * k_tau, clamped to +-dv_max */
+        /* dv = (v_goal - v) * k_tau, clamped to +-dv_max; asked to stop (v_goal <= 0), the
+           driver brakes at the field deceleration down to a standstill */
         double dv = (f.v_goal - v) * k.k_tau;
-        if (dv > k.dv_max) {
+        if (f.v_goal <= 0.0) {
+            dv = -k.dv_max;
+        } else if (dv > k.dv_max) {
             dv = k.dv_max;
         } else if (dv < -k.dv_max) {
             dv = -k.dv_max;

@@ -1,0 +1,81 @@
+"""The general rule of the suites (issue 21): every measurement in the catalogue
+(``hil/limits.py``) can fail, and something shows that it does.
+
+A measurement is *covered* when at least one must-fail DUT profile names it in a header line
+
+    # must-fail: flow.fault.speed_loss.overdelivery, flow.bench.accuracy
+
+(any ``dut_profiles/must_fail/*.toml``; the discrimination tests run those profiles and check
+that each fails there: ``tests/test_discrimination.py``, ``tests/test_suites_depth_*.py``,
+and the bus-conformance tests for ``*-bus-*`` profiles), or when :data:`SYNTHETIC` names the
+framework test whose synthetic DUT or data fails it. This test enumerates the catalogue, so
+a new measurement without either fails the build; so does a registration naming a
+measurement the catalogue does not have.
+
+:data:`GAPS` lists the measurements that nothing fails yet, each with the reason: the list
+may only shrink (a covered measurement left in it fails too).
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from hil.limits import MEASUREMENTS
+
+ROOT = Path(__file__).resolve().parents[1]
+MUST_FAIL = ROOT / "dut_profiles" / "must_fail"
+HEADER = re.compile(r"^#\s*must-fail:\s*(.+)$", re.MULTILINE)
+
+#: measurement -> the framework test that fails it with a synthetic DUT or synthetic data
+SYNTHETIC: dict[str, str] = {}
+
+#: measurement -> why no must-fail profile or synthetic DUT fails it yet (issue 21's rule is
+#: not met for these; the list may only shrink)
+GAPS: dict[str, str] = {
+    "depth.field.cv": "information: GB/T 20865's CV over every sample, outliers included "
+                      "(pass_rate and inlier_cv carry the field limits, papers.md on [D] "
+                      "Table 3); no limit in the profiles, so it cannot fail in the suites "
+                      "(the gate judges its regression against a baseline)",
+    "rig.timing.lateness_p99": "judges the bench, not the DUT (a late rig makes the run "
+                               "invalid bench); no limit in the profiles",
+}
+
+
+def registered() -> dict[str, list[str]]:
+    """measurement -> the must-fail profiles (file names) whose header names it."""
+    out: dict[str, list[str]] = {}
+    for path in sorted(MUST_FAIL.glob("*.toml")):
+        for line in HEADER.findall(path.read_text(encoding="utf-8")):
+            for name in (n.strip() for n in line.split(",")):
+                if name:
+                    out.setdefault(name, []).append(path.name)
+    return out
+
+
+def test_registrations_name_catalogue_measurements() -> None:
+    unknown = {name: files for name, files in registered().items()
+               if name not in MEASUREMENTS}
+    unknown.update({name: [test] for name, test in SYNTHETIC.items()
+                    if name not in MEASUREMENTS})
+    assert not unknown, f"registered measurements not in hil/limits.py: {unknown}"
+
+
+def test_every_catalogue_measurement_can_be_failed() -> None:
+    covered = set(registered()) | set(SYNTHETIC)
+    missing = sorted(set(MEASUREMENTS) - covered - set(GAPS))
+    assert not missing, ("measurements no must-fail profile (`# must-fail:` header) or "
+                         f"synthetic DUT (SYNTHETIC) fails: {missing}")
+
+
+def test_gaps_only_shrink() -> None:
+    closed = sorted(set(GAPS) & (set(registered()) | set(SYNTHETIC)))
+    assert not closed, f"covered now, remove from GAPS: {closed}"
+    stale = sorted(set(GAPS) - set(MEASUREMENTS))
+    assert not stale, f"GAPS names measurements the catalogue no longer has: {stale}"
+
+
+def test_every_must_fail_profile_says_what_it_must_fail() -> None:
+    silent = [p.name for p in sorted(MUST_FAIL.glob("*.toml"))
+              if not HEADER.search(p.read_text(encoding="utf-8"))]
+    assert not silent, f"must-fail profiles without a '# must-fail:' header: {silent}"
