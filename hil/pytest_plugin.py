@@ -46,6 +46,7 @@ from hil.dut.profile import DutProfile, load_profile
 from hil.errors import ConfigError, HilError
 from hil.limits import MEASUREMENTS, known_measurement
 from hil.measurements import Measurement, Outcome
+from hil.record.atomic import write_json_atomic
 from hil.record.recorder import versions
 from hil.rig import Rig, RunOptions, RunResult, load_rig, run_scenario
 from hil.rig.scenario import Scenario
@@ -159,6 +160,10 @@ class QualificationSession:
     runs: dict[tuple[Any, ...], _RunEntry] = field(default_factory=dict)
     by_item: dict[str, list[Measurement]] = field(default_factory=dict)
     invalid_bench: dict[str, str] = field(default_factory=dict)
+    #: node ids of the tests selected to run (set when collection finishes)
+    planned: list[str] = field(default_factory=list)
+    #: a SIGINT/SIGTERM (KeyboardInterrupt) ended the session early
+    interrupted: bool = False
 
     # --- runs ---------------------------------------------------------------------------------
     def run(self, nodeid: str, rig_cls: type[Rig], scenario: Scenario | str, *,
@@ -261,10 +266,17 @@ class QualificationSession:
             self.tests.append({"nodeid": report.nodeid, "outcome": report.outcome,
                                "duration_s": round(report.duration, 3), "message": message})
 
+    def pytest_collection_finish(self, session: pytest.Session) -> None:
+        self.planned = [item.nodeid for item in session.items]
+
+    def pytest_keyboard_interrupt(self, excinfo: Any) -> None:
+        self.interrupted = True
+
     def pytest_sessionfinish(self, session: pytest.Session, exitstatus: int) -> None:
         record = self.record(exitstatus)
         self.report_dir.mkdir(parents=True, exist_ok=True)
-        (self.report_dir / "record.json").write_text(json.dumps(record, indent=2, default=str))
+        # atomic: a second Ctrl-C or a kill while writing leaves the old file or the new one
+        write_json_atomic(self.report_dir / "record.json", record)
         from hil.report import write_html
 
         try:
@@ -287,7 +299,19 @@ class QualificationSession:
             terminalreporter.write_line(f"agrihil: ERROR: {error}", red=True)
 
     # --- the record ----------------------------------------------------------------------------
+    def completed_tests(self) -> set[str]:
+        """Node ids of the tests that ran to their end (passed, failed or skipped)."""
+        return {t["nodeid"] for t in self.tests}
+
+    def complete(self, exitstatus: int | None = None) -> bool:
+        """True when the session ran every selected test and nobody interrupted it."""
+        if self.interrupted or exitstatus == pytest.ExitCode.INTERRUPTED:
+            return False
+        return set(self.planned) <= self.completed_tests()
+
     def _verdict(self, exitstatus: int | None = None) -> str:
+        if not self.complete(exitstatus):
+            return "interrupted"   # never a pass: some selected tests did not run
         if self.invalid_bench:
             return "invalid-bench"
         if exitstatus in (pytest.ExitCode.INTERRUPTED, pytest.ExitCode.INTERNAL_ERROR,
@@ -319,6 +343,10 @@ class QualificationSession:
             "started_at": self.started_at,
             "wall_s": round(time.perf_counter() - self.t0, 3),
             "verdict": self._verdict(exitstatus),
+            "complete": self.complete(exitstatus),
+            "tests_planned": len(self.planned),
+            "tests_completed": len(self.completed_tests() & set(self.planned)),
+            "tests_not_run": [n for n in self.planned if n not in self.completed_tests()],
             "dut": {**self.profile.identity(), "parameters": self.profile.parameters},
             "rig": {"name": rig_cls.name, **_rig_config_identity(rig_cls, self.profile)},
             "bus": self.bus, "clock": self.clock, "seed": self.seed,

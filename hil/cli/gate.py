@@ -64,6 +64,10 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
 
 def _run(args: argparse.Namespace) -> int:
     record = load_record(args.record)
+    incomplete = record.incomplete_reason()
+    if incomplete:   # an interrupted qualification is never judged, however it reads
+        print(f"hil: error: {incomplete}", file=sys.stderr)
+        return 2
     tolerances = load_tolerances(args.tolerance) if args.tolerance else DEFAULT_TOLERANCES
     if args.update_baseline and not args.baseline:
         raise ConfigError("--update-baseline needs --baseline PATH (where to write it)",

@@ -13,6 +13,7 @@ import signal
 import sys
 from collections.abc import Sequence
 from types import FrameType
+from typing import Any
 
 from hil import __version__
 from hil.errors import HilError
@@ -30,8 +31,27 @@ class Terminated(KeyboardInterrupt):
     """SIGTERM, turned into an exception so every ``with`` block flushes what it recorded."""
 
 
-def _on_sigterm(signum: int, frame: FrameType | None) -> None:
-    raise Terminated(f"signal {signum}")
+class _Interrupts:
+    """SIGINT and SIGTERM: the first one raises (``KeyboardInterrupt`` / :class:`Terminated`)
+    so every ``with`` block writes what it recorded; every later one is counted and ignored,
+    so a second Ctrl-C cannot cut the writing of the record short (SIGKILL still ends it)."""
+
+    def __init__(self) -> None:
+        self.count = 0
+
+    def __call__(self, signum: int, frame: FrameType | None) -> None:
+        self.count += 1
+        if self.count == 1:
+            if signum == signal.SIGTERM:
+                raise Terminated(f"signal {signum}")
+            raise KeyboardInterrupt
+        print(f"hil: {signal.Signals(signum).name} again: still writing what was recorded "
+              f"(SIGKILL abandons it)", file=sys.stderr, flush=True)
+
+
+#: how many SIGINT/SIGTERM the running command has received (0: none)
+INTERRUPTS = _Interrupts()
+_on_sigterm = INTERRUPTS   # the name earlier code installs as the SIGTERM handler
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -50,14 +70,21 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
+    INTERRUPTS.count = 0
+    previous = {sig: signal.signal(sig, INTERRUPTS) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
+        parser = build_parser()
         args = parser.parse_args(argv)
     except SystemExit as exc:  # argparse exits 2 on usage errors, 0 on --help
+        _restore(previous)
         return int(exc.code or 0)
+    except KeyboardInterrupt:   # before the command began: nothing was touched
+        _restore(previous)
+        print("hil: interrupted before the command began; nothing was written",
+              file=sys.stderr)
+        return 130
     level = logging.WARNING - 10 * min(args.verbose, 2)
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
-    previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         return int(args.func(args))
     except KeyboardInterrupt:
@@ -69,4 +96,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"hil: error: {exc}", file=sys.stderr)
         return EXIT_SETUP
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        _restore(previous)
+
+
+def _restore(previous: dict[signal.Signals, Any]) -> None:
+    for sig, handler in previous.items():
+        signal.signal(sig, handler)
