@@ -164,6 +164,10 @@ class QualificationSession:
     planned: list[str] = field(default_factory=list)
     #: a SIGINT/SIGTERM (KeyboardInterrupt) ended the session early
     interrupted: bool = False
+    #: runs each test used (node id -> results), to judge what the test's code raised
+    runs_of_test: dict[str, list[RunResult]] = field(default_factory=dict)
+    #: tests failed because their DUT stopped (node id -> "the DUT stopped at t = … s")
+    dut_failures: dict[str, str] = field(default_factory=dict)
 
     # --- runs ---------------------------------------------------------------------------------
     def run(self, nodeid: str, rig_cls: type[Rig], scenario: Scenario | str, *,
@@ -184,6 +188,7 @@ class QualificationSession:
                clock)
         cached = self.runs.get(key)
         if cached is not None:
+            self.runs_of_test.setdefault(nodeid, []).append(cached.result)
             return cached.result
         rel = f"runs/{_slug(nodeid)}{'-' + _slug(label) if label else ''}"
         out_dir = self.report_dir / rel
@@ -196,6 +201,7 @@ class QualificationSession:
             extra_meta={"dut_identity": profile.identity(), "dut_build": build,
                         "test": nodeid}))
         self.runs[key] = _RunEntry(result, rel, scenario.name)
+        self.runs_of_test.setdefault(nodeid, []).append(result)
         timing = result.record.get("timing") or {}
         if timing.get("mode") == "realtime" and not timing.get("valid", True):
             self.invalid_bench[nodeid] = rel
@@ -217,7 +223,7 @@ class QualificationSession:
                               f"(hil/limits.py) for the {rig} rig")
         if run is not None and run.record.get("error"):
             value = math.nan
-            note = (note + "; " if note else "") + f"run ended early: {run.record['error']}"
+            note = _stopped_reason(run) + (f"; {note}" if note else "")
         limit = self.profile.limit(name)
         m = Measurement(name, float(value), MEASUREMENTS[name].unit,
                         low=limit.low if limit else None, high=limit.high if limit else None,
@@ -231,7 +237,61 @@ class QualificationSession:
         self.by_item.setdefault(nodeid, []).append(m)
         return m
 
+    def dead_dut_reason(self, nodeid: str) -> str | None:
+        """Why a test's runs say nothing about its measurements (its DUT stopped), or None."""
+        for result in self.runs_of_test.get(nodeid, ()):
+            if result.record.get("error"):
+                return _stopped_reason(result)
+        return None
+
     # --- pytest hooks ---------------------------------------------------------------------------
+    @pytest.hookimpl(wrapper=True)
+    def pytest_pyfunc_call(self, pyfuncitem: pytest.Function) -> Generator[None, Any, Any]:
+        """A test whose run ended because its DUT stopped fails with that reason; what its
+        code raised computing on the short traces is not a suite error (and not shown)."""
+        try:
+            return (yield)
+        except Exception as exc:
+            reason = self.dead_dut_reason(pyfuncitem.nodeid)
+            if reason is None:
+                raise
+            self.dut_failures[pyfuncitem.nodeid] = reason
+            failed = self._fail_unmeasured(pyfuncitem)
+            message = (f"{reason}; the test could not compute its measurements "
+                       f"({type(exc).__name__}: {exc})"
+                       + (f"; recorded as failed: {', '.join(failed)}" if failed else ""))
+        pytest.fail(message, pytrace=False)    # outside the except: no exception chain
+
+    def _fail_unmeasured(self, item: pytest.Function) -> list[str]:
+        """Record, as failed (NaN, with the reason), the measurements a test whose DUT stopped
+        did not get to: the catalogue names its code names (literally or as a parameter),
+        with the test's other parameters as conditions (the suites' convention)."""
+        import inspect
+
+        rig = self.profile.dut.rig.replace("-", "_")
+        params = dict(getattr(getattr(item, "callspec", None), "params", {}) or {})
+        try:
+            source = inspect.getsource(item.obj)
+        except (OSError, TypeError):
+            source = ""
+        names = [n for n in re.findall(r"""hil_measure\(\s*["']([\w.]+)["']""", source)]
+        names += [v for v in params.values() if isinstance(v, str)]
+        names = [n for n in dict.fromkeys(names) if known_measurement(n, rig)]
+        conditions = {k: v for k, v in params.items()
+                      if isinstance(v, int | float | bool) or (isinstance(v, str)
+                                                               and v not in names)}
+        conditions = {k: v for k, v in conditions.items()
+                      if not (isinstance(v, str) and k == "scenario")}
+        done = {m.name for m in self.by_item.get(item.nodeid, [])}
+        dead = next((r for r in self.runs_of_test.get(item.nodeid, ())
+                     if r.record.get("error")), None)
+        failed = []
+        for name in names:
+            if name not in done:
+                self.measure(item.nodeid, name, math.nan, conditions=conditions, run=dead)
+                failed.append(name)
+        return failed
+
     @pytest.hookimpl(hookwrapper=True)
     def pytest_runtest_makereport(self, item: pytest.Item,
                                   call: pytest.CallInfo[None]) -> Generator[None, Any, None]:
@@ -315,7 +375,11 @@ class QualificationSession:
         if self.invalid_bench:
             return "invalid-bench"
         if exitstatus in (pytest.ExitCode.INTERRUPTED, pytest.ExitCode.INTERNAL_ERROR,
-                          pytest.ExitCode.USAGE_ERROR) or not self.measurements:
+                          pytest.ExitCode.USAGE_ERROR):
+            return "error"
+        if self.dut_failures:
+            return "fail"     # a DUT that stopped fails, measured or not
+        if not self.measurements:
             return "error"
         if any(m["outcome"] in ("fail", "error") for m in self.measurements):
             return "fail"
@@ -385,6 +449,14 @@ def _dotted(table: dict[str, Any], prefix: str = "") -> dict[str, Any]:
         else:
             out[f"{prefix}{key}"] = value
     return out
+
+
+def _stopped_reason(run: RunResult) -> str:
+    """"the DUT stopped at t = 3.0 s (exited with SIGSEGV)" for a run the DUT ended."""
+    stopped = run.record.get("dut_stopped")
+    if isinstance(stopped, dict) and "t_s" in stopped:
+        return f"the DUT stopped at t = {stopped['t_s']:.1f} s ({stopped.get('what', '?')})"
+    return f"the run ended early: {run.record.get('error')}"
 
 
 def _slug(text: str) -> str:
