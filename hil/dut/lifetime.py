@@ -12,8 +12,9 @@ Two mechanisms, because one is not enough:
   agrihil asks (:meth:`Guardian.kill_tree`, on a normal stop) or when agrihil's end of its
   pipe closes, which is how the guardian learns that agrihil died, however it died.
 
-The guardian is ``python -m hil.dut.lifetime``; it reads ``watch PID``, ``kill PID`` and
-``release PID`` lines on stdin and answers ``kill`` with ``done N`` (the processes it killed).
+The guardian is ``python -m hil.dut.lifetime``; it reads ``watch PID``, ``scan PID``,
+``kill PID`` and ``release PID`` lines on stdin and answers ``scan`` and ``kill`` with
+``done N`` (the processes it knows in the tree / it killed).
 """
 
 from __future__ import annotations
@@ -150,6 +151,9 @@ def _guard() -> int:
             known = trees.pop(pid, {})
             known.pop(pid, None)               # the leader is the caller's to stop
             os.write(sys.stdout.fileno(), f"done {_kill_known(known)}\n".encode())
+        elif command == "scan":                # now, while the tree is whole; then ack
+            scan()
+            os.write(sys.stdout.fileno(), f"done {len(trees.get(pid, {}))}\n".encode())
         elif command == "release":
             trees.pop(pid, None)
 
@@ -205,6 +209,12 @@ class Guardian:
         """SIGKILL every process ever seen below ``pid`` that still lives (``pid`` itself is
         the caller's to stop); forget ``pid``. Returns how many were killed."""
         reply = self._send(f"kill {pid}", answer=True)
+        return int(reply.split()[1]) if reply.startswith("done ") else 0
+
+    def scan(self, pid: int) -> int:
+        """Note ``pid``'s tree as it is now (before stopping it: once the leader is gone, its
+        children belong to nobody); returns how many processes are known in it."""
+        reply = self._send(f"scan {pid}", answer=True)
         return int(reply.split()[1]) if reply.startswith("done ") else 0
 
     def release(self, pid: int) -> None:

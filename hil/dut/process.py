@@ -204,6 +204,7 @@ class ProcessDut(DutRunner):
                                   "ready_s": round(self.ready_s, 3)}
         proc = self.proc
         if proc is not None:
+            guardian().scan(proc.pid)          # the tree as it is, while its root lives
             exited_before = proc.poll()
             ignored = False
             if exited_before is None:

@@ -30,6 +30,7 @@ def main() -> int:
         helper = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"],
                                   start_new_session=True)
         print(f"helper {helper.pid}", flush=True)
+    print(f"pid {os.getpid()}", flush=True)
     print("ready", flush=True)
     syncs = 0
     while True:
