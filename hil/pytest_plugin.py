@@ -80,6 +80,10 @@ def pytest_configure(config: pytest.Config) -> None:
             profile = load_profile(path)
         except ConfigError as exc:
             raise pytest.UsageError(f"--hil-dut: {exc}") from exc
+        seed = config.getoption("--hil-seed")
+        if seed is not None and not 0 <= seed <= 2**63 - 1:   # a setup error, not the DUT's
+            raise pytest.UsageError(f"--hil-seed: {seed} is not a seed: give an integer "
+                                    f"0 .. 2**63-1")
         session = QualificationSession(
             profile=profile, bus=config.getoption("--hil-bus"),
             clock=config.getoption("--hil-clock"),

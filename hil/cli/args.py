@@ -135,6 +135,6 @@ def check_bus_for_dut(bus: str, dut_kind: str, *, inprocess_twin: bool = False) 
     if bus == "inline" and inprocess_twin and dut_kind == "daemon":
         return
     works = "softbus (the default), socketcand:HOST:PORT/CH, socketcan:IFACE"
-    raise ConfigError(f"--bus {bus} lives inside the rig's process, and a {dut_kind} DUT runs "
+    raise ConfigError(f"{bus} lives inside the rig's process, and a {dut_kind} DUT runs "
                       f"in a process of its own (or on its own hardware): use {works}",
                       key="--bus")

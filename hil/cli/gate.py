@@ -18,6 +18,7 @@ import sys
 from datetime import UTC, datetime
 from pathlib import Path
 
+from hil.cli.args import check_writable_file
 from hil.errors import ConfigError
 from hil.gate import (
     DEFAULT_TOLERANCES,
@@ -63,6 +64,10 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
 
 
 def _run(args: argparse.Namespace) -> int:
+    if args.update_baseline and args.baseline:
+        check_writable_file(args.baseline, "--baseline")
+    if args.summary:
+        check_writable_file(args.summary, "--summary")
     record = load_record(args.record)
     incomplete = record.incomplete_reason()
     if incomplete:   # an interrupted qualification is never judged, however it reads

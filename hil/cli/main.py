@@ -1,6 +1,7 @@
 """Entry point of the ``hil`` command.
 
-Exit status: 0 pass, 1 fail (a run or a check failed), 2 usage or setup error.
+Exit status: 0 pass, 1 fail (a run or a check failed, the DUT stopped), 2 usage or setup
+error (one line; an internal error says so and asks for ``--debug``), 130 interrupted.
 ``--debug`` shows tracebacks instead of one-line errors.
 """
 
@@ -13,7 +14,7 @@ import signal
 import sys
 from collections.abc import Sequence
 from types import FrameType
-from typing import Any
+from typing import Any, NoReturn
 
 from hil import __version__
 from hil.errors import HilError
@@ -54,8 +55,15 @@ INTERRUPTS = _Interrupts()
 _on_sigterm = INTERRUPTS   # the name earlier code installs as the SIGTERM handler
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse, with a usage error on one line (and where to read the usage)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_SETUP, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="hil", description="agrihil: hardware-in-the-loop rigs for agricultural CAN "
                                 "controllers")
     parser.add_argument("--version", action="version", version=f"agrihil {__version__}")
@@ -95,8 +103,33 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         print(f"hil: error: {exc}", file=sys.stderr)
         return EXIT_SETUP
+    except (OSError, ValueError, OverflowError) as exc:
+        # what user input provokes from the libraries (a path that cannot be written, a
+        # number out of range, a log format python-can does not know): one line, exit 2
+        if args.debug:
+            raise
+        print(f"hil: error: {_one_line(exc)}", file=sys.stderr)
+        return EXIT_SETUP
+    except Exception as exc:
+        # a bug of agrihil's, not the user's: said as such, never swallowed silently
+        if args.debug:
+            raise
+        print(f"hil: internal error: {type(exc).__name__}: {_one_line(exc, kind=False)} "
+              f"(a bug: rerun with --debug for the traceback and report it)", file=sys.stderr)
+        return EXIT_SETUP
     finally:
         _restore(previous)
+
+
+def _one_line(exc: BaseException, *, kind: bool = True) -> str:
+    """An exception as one line: an OSError's file and reason, else its message."""
+    if isinstance(exc, OSError) and exc.strerror:
+        text = f"{exc.filename}: {exc.strerror}" if exc.filename else exc.strerror
+    else:
+        text = str(exc) or type(exc).__name__
+        if kind and not isinstance(exc, HilError):
+            text = f"{text} ({type(exc).__name__})"
+    return " ".join(text.split())
 
 
 def _restore(previous: dict[signal.Signals, Any]) -> None:
