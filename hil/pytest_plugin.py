@@ -172,6 +172,7 @@ class QualificationSession:
     runs_of_test: dict[str, list[RunResult]] = field(default_factory=dict)
     #: tests failed because their DUT stopped (node id -> "the DUT stopped at t = … s")
     dut_failures: dict[str, str] = field(default_factory=dict)
+    _config: pytest.Config | None = None
 
     # --- runs ---------------------------------------------------------------------------------
     def run(self, nodeid: str, rig_cls: type[Rig], scenario: Scenario | str, *,
@@ -321,7 +322,27 @@ class QualificationSession:
                      + (f" - {m.note}" if m.note else "") for m in bad]
             report.longrepr = "measurements out of limits:\n  " + "\n  ".join(lines)
 
+    @pytest.hookimpl(trylast=True)     # after the terminal's own PASSED/FAILED
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
+        self._log_test(report)
+        if report.when == "call":
+            self._print_measurements(report)
+
+    def _print_measurements(self, report: pytest.TestReport) -> None:
+        """Each measurement of the test as it is judged (verbose runs: ``hil qualify``)."""
+        from hil.console import measurement_line
+
+        config = self._config
+        terminal = config.pluginmanager.get_plugin("terminalreporter") if config else None
+        if terminal is None or config is None or config.get_verbosity() < 1:
+            return
+        terminal.ensure_newline()
+        for m in self.measurements:
+            if m["test"] == report.nodeid:
+                terminal.write_line("    " + measurement_line(m),
+                                    red=m["outcome"] in ("fail", "error"))
+
+    def _log_test(self, report: pytest.TestReport) -> None:
         if report.when == "call" or (report.when == "setup" and report.outcome != "passed"):
             message = ""
             if report.outcome != "passed" and report.longrepr is not None:
@@ -332,6 +353,7 @@ class QualificationSession:
 
     def pytest_collection_finish(self, session: pytest.Session) -> None:
         self.planned = [item.nodeid for item in session.items]
+        self._config = session.config
 
     def pytest_keyboard_interrupt(self, excinfo: Any) -> None:
         self.interrupted = True
@@ -349,16 +371,19 @@ class QualificationSession:
             session.config.stash[_REPORT_ERROR] = f"report.html not written: {exc}"
 
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
+        from hil.console import summary_lines
+
         error = terminalreporter.config.stash.get(_REPORT_ERROR, None)
         verdict = self._verdict()
         terminalreporter.write_sep("=", f"agrihil qualification of {self.profile.name}: "
                                         f"{verdict.upper()}")
-        counts: dict[str, int] = {}
-        for m in self.measurements:
-            counts[m["outcome"]] = counts.get(m["outcome"], 0) + 1
-        terminalreporter.write_line(
-            f"measurements: {', '.join(f'{v} {k}' for k, v in sorted(counts.items())) or 'none'}"
-            f"; record: {self.report_dir / 'record.json'}")
+        not_run = [n for n in self.planned if n not in self.completed_tests()]
+        for line in summary_lines(self.measurements, self.tests, not_run=not_run):
+            terminalreporter.write_line(line)
+        # hil qualify writes into a staging directory and moves the result into its parent
+        shown = (self.report_dir.parent if self.report_dir.name.startswith(".qualify-")
+                 else self.report_dir)
+        terminalreporter.write_line(f"record: {shown / 'record.json'}")
         if error:
             terminalreporter.write_line(f"agrihil: ERROR: {error}", red=True)
 

@@ -92,6 +92,11 @@ def test_a_finished_qualification_replaces_the_previous_one(tmp_path: Path) -> N
                            "-k", "test_flow_step and 23"], cwd=ROOT, capture_output=True,
                           text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-3000:]
+    # the console: each measurement as it is judged, only this rig's suites (no SKIPPED lines
+    # for the other rig), and the summary
+    assert "    flow.step.overshoot[target_gps=23] = " in proc.stdout
+    assert "sowing_depth" not in proc.stdout and "SKIPPED" not in proc.stdout
+    assert "measurements: 4 = " in proc.stdout
     record = json.loads((out / "record.json").read_text())
     assert record["verdict"] == "pass" and record["complete"] is True
     assert record["tests_planned"] == record["tests_completed"] == 1
