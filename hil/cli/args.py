@@ -81,16 +81,20 @@ def prepare_out_dir(path: str | Path, option: str = "--out") -> Path:
     return out
 
 
-def check_writable_file(path: str | Path, option: str) -> Path:
-    """Refuse a file path that cannot be written (its directory missing or read-only, or
-    the path an existing directory)."""
+def check_writable_file(path: str | Path, option: str, *, make_dirs: bool = False) -> Path:
+    """Refuse a file path that cannot be written: the path an existing directory, its
+    directory missing (unless ``make_dirs``: then the nearest existing ancestor must be a
+    writable directory), a file in the way, or no permission."""
     target = Path(path)
-    parent = target.parent if str(target.parent) else Path(".")
     if target.is_dir():
         raise ConfigError(f"{target} is a directory, not a file", key=option)
+    parent = target.absolute().parent
+    if make_dirs:
+        while not parent.exists() and parent != parent.parent:
+            parent = parent.parent
     if not parent.is_dir():
-        raise ConfigError(f"cannot write {target}: directory {parent} does not exist",
-                          key=option)
+        why = "is a file" if parent.exists() else "does not exist"
+        raise ConfigError(f"cannot write {target}: {parent} {why}", key=option)
     if not os.access(parent, os.W_OK | os.X_OK) or (target.exists()
                                                      and not os.access(target, os.W_OK)):
         raise ConfigError(f"cannot write {target}: permission denied", key=option)

@@ -65,7 +65,7 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
 
 def _run(args: argparse.Namespace) -> int:
     if args.update_baseline and args.baseline:
-        check_writable_file(args.baseline, "--baseline")
+        check_writable_file(args.baseline, "--baseline", make_dirs=True)
     if args.summary:
         check_writable_file(args.summary, "--summary")
     record = load_record(args.record)

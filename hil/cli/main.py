@@ -133,5 +133,8 @@ def _one_line(exc: BaseException, *, kind: bool = True) -> str:
 
 
 def _restore(previous: dict[signal.Signals, Any]) -> None:
+    """Put the caller's handlers back; after an interruption, ignore SIGINT/SIGTERM instead:
+    a second Ctrl-C between the command's end and the process's must not turn the exit
+    status 130 into death by signal."""
     for sig, handler in previous.items():
-        signal.signal(sig, handler)
+        signal.signal(sig, handler if INTERRUPTS.count == 0 else signal.SIG_IGN)

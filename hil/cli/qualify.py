@@ -144,26 +144,12 @@ def promote(stage: Path, out: Path) -> None:
 
 
 def _qualify(args: argparse.Namespace) -> int:
-    # every option is checked before anything runs: a bad one is exit 2, never the DUT's fault
-    profile = load_profile(args.profile)          # a bad profile never starts a run
-    check_suites(args.suite)
-    check_seed(args.seed)
-    check_bus_for_dut(args.bus, profile.dut.kind,
-                      inprocess_twin=bool(profile.launch.inprocess))
-    out = prepare_out_dir(args.out)
-    rig = profile.dut.rig
-    suite_location(rig)                            # a rig without suites is a setup error
-    _clear_stale_staging(out)
-    run_id = uuid.uuid4().hex[:12]
-    stage = out / f"{STAGING_PREFIX}{os.getpid()}-{run_id}"
-    stage.mkdir()
-    # from here on, whatever happens, record.json says this qualification did not finish
-    # until it has; the previous record is kept next to it
-    if (out / "record.json").exists():
-        shutil.copy2(out / "record.json", out / "record.previous.json")
-    write_json_atomic(out / "record.json", interrupted_record(
-        profile, args, run_id=run_id, note="the qualification started and has not finished "
-                                           "(or was killed)"))
+    try:
+        profile, out, stage, run_id = _prepare(args)
+    except KeyboardInterrupt:
+        print("hil: interrupted before the qualification began; --out is untouched",
+              file=sys.stderr)
+        return 130
     code: int | None = None
     try:
         code = _run_suites(args, profile, stage)
@@ -180,6 +166,33 @@ def _qualify(args: argparse.Namespace) -> int:
         raise HilError(f"the suites ran no test (pytest exit {code}); see the output above")
     _print_summary(record, profile, out)
     return EXIT_BY_VERDICT.get(verdict, 2)
+
+
+def _prepare(args: argparse.Namespace) -> tuple[DutProfile, Path, Path, str]:
+    """Check every option, then stage: from the end of this on, ``record.json`` says the
+    qualification has not finished until it has."""
+    # every option is checked before anything runs: a bad one is exit 2, never the DUT's fault
+    profile = load_profile(args.profile)          # a bad profile never starts a run
+    check_suites(args.suite)
+    check_seed(args.seed)
+    check_bus_for_dut(args.bus, profile.dut.kind,
+                      inprocess_twin=bool(profile.launch.inprocess))
+    out = prepare_out_dir(args.out)
+    rig = profile.dut.rig
+    suite_location(rig)                            # a rig without suites is a setup error
+    _clear_stale_staging(out)
+    run_id = uuid.uuid4().hex[:12]
+    stage = out / f"{STAGING_PREFIX}{os.getpid()}-{run_id}"
+    # from here on, whatever happens, record.json says this qualification did not finish
+    # until it has; the previous record is kept next to it
+    if (out / "record.json").exists():
+        shutil.copy2(out / "record.json", out / "record.previous.json")
+    with _signals_held():   # the staging directory and the placeholder record, or neither
+        stage.mkdir()
+        write_json_atomic(out / "record.json", interrupted_record(
+            profile, args, run_id=run_id, note="the qualification started and has not "
+                                               "finished (or was killed)"))
+    return profile, out, stage, run_id
 
 
 def _run_suites(args: argparse.Namespace, profile: DutProfile, stage: Path) -> int:

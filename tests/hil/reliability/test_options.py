@@ -104,9 +104,11 @@ def test_port_out_of_range_is_one_line(capsys) -> None:
 
 
 def test_gate_refuses_an_unwritable_baseline_before_reading_anything(capsys, tmp_path) -> None:
+    blocker = tmp_path / "a-file"
+    blocker.write_text("")
     _one_line_exit_2(capsys, ["gate", str(tmp_path / "record.json"), "--baseline",
-                              str(tmp_path / "missing-dir" / "b.json"), "--update-baseline"],
-                     "--baseline", "does not exist")
+                              str(blocker / "dir" / "b.json"), "--update-baseline"],
+                     "--baseline", "is a file")
 
 
 def test_an_os_error_from_user_input_is_one_line_not_a_traceback(capsys, tmp_path,
