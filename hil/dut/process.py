@@ -12,7 +12,7 @@ Process hygiene is this module's job:
   SIGKILLs the group and records that the DUT ignored SIGTERM. A finalizer does the same if
   the rig's process ends without calling ``stop``, so no process is left behind;
 * the DUT dies with the rig's process even when that is SIGKILLed (``PR_SET_PDEATHSIG``), and
-  the :mod:`~hil.dut.lifetime` guardian follows its process tree, so what it started (even in
+  the :mod:`~hil.lifetime` guardian follows its process tree, so what it started (even in
   a session of its own) is killed on stop or when the rig's process dies.
 """
 
@@ -30,7 +30,7 @@ from typing import IO, Any
 from hil.bus import open_bus
 from hil.dut.base import DutError, DutRunner, DutSetupError, DutStopped
 from hil.dut.build import PROJECT_ROOT, expand
-from hil.dut.lifetime import die_with_parent, guardian
+from hil.lifetime import die_with_parent, guardian
 from hil.dut.profile import DutProfile
 
 TAIL_CHARS = 4000

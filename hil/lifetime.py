@@ -12,7 +12,7 @@ Two mechanisms, because one is not enough:
   agrihil asks (:meth:`Guardian.kill_tree`, on a normal stop) or when agrihil's end of its
   pipe closes, which is how the guardian learns that agrihil died, however it died.
 
-The guardian is ``python -m hil.dut.lifetime``; it reads ``watch PID``, ``scan PID``,
+The guardian is ``python -m hil.lifetime``; it reads ``watch PID``, ``scan PID``,
 ``kill PID`` and ``release PID`` lines on stdin and answers ``scan`` and ``kill`` with
 ``done N`` (the processes it knows in the tree / it killed).
 """
@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
-import ctypes.util
 import os
 import selectors
 import signal
@@ -35,7 +34,7 @@ PR_SET_PDEATHSIG = 1
 #: how often the guardian rescans the watched trees (s)
 SCAN_PERIOD_S = 0.2
 
-_libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+_libc = ctypes.CDLL(None, use_errno=True)    # the C library the interpreter is linked with
 _prctl = _libc.prctl
 _prctl.argtypes = [ctypes.c_int, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong,
                    ctypes.c_ulong]
@@ -121,7 +120,7 @@ def _kill_known(known: dict[int, int]) -> int:
 
 # --- the guardian process ---------------------------------------------------------------------
 def _guard() -> int:
-    """The guardian's loop (``python -m hil.dut.lifetime``)."""
+    """The guardian's loop (``python -m hil.lifetime``)."""
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, signal.SIG_IGN)
     trees: dict[int, dict[int, int]] = {}      # root pid -> every pid seen below it (+ root)
@@ -185,7 +184,7 @@ class Guardian:
     def _ensure(self) -> subprocess.Popen[str]:
         if self.proc is None or self.proc.poll() is not None:
             self.proc = subprocess.Popen(
-                [sys.executable, "-m", "hil.dut.lifetime"], stdin=subprocess.PIPE,
+                [sys.executable, "-m", "hil.lifetime"], stdin=subprocess.PIPE,
                 stdout=subprocess.PIPE, text=True, start_new_session=True,
                 env={**os.environ, "PYTHONUNBUFFERED": "1"})
         return self.proc
