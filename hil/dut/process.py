@@ -30,8 +30,8 @@ from typing import IO, Any
 from hil.bus import open_bus
 from hil.dut.base import DutError, DutRunner, DutSetupError, DutStopped
 from hil.dut.build import PROJECT_ROOT, expand
-from hil.lifetime import die_with_parent, guardian
 from hil.dut.profile import DutProfile
+from hil.lifetime import die_with_parent, guardian
 
 TAIL_CHARS = 4000
 
