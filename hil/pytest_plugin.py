@@ -400,7 +400,12 @@ class QualificationSession:
 
     def _verdict(self, exitstatus: int | None = None) -> str:
         if not self.complete(exitstatus):
-            return "interrupted"   # never a pass: some selected tests did not run
+            stopped_on_failure = (not self.interrupted
+                                  and exitstatus != pytest.ExitCode.INTERRUPTED
+                                  and any(t["outcome"] == "failed" for t in self.tests))
+            # never a pass: some selected tests did not run (a session stopped at its first
+            # failure, pytest -x, is a fail, though incomplete)
+            return "fail" if stopped_on_failure else "interrupted"
         if self.invalid_bench:
             return "invalid-bench"
         if exitstatus in (pytest.ExitCode.INTERRUPTED, pytest.ExitCode.INTERNAL_ERROR,

@@ -110,8 +110,8 @@ class QualificationRecord:
 
     def incomplete_reason(self) -> str | None:
         """Why the gate must not judge this record (None: it may)."""
-        if self.verdict != "interrupted" and self.complete:
-            return None
+        if self.verdict != "interrupted" and (self.complete or self.verdict == "fail"):
+            return None      # complete, or incomplete but failed already: judged as a fail
         done = ("" if self.tests_planned is None else
                 f" after {self.tests_completed} of {self.tests_planned} tests")
         return (f"{self.path}: the qualification was interrupted{done}; an incomplete record "

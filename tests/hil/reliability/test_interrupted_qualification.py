@@ -118,3 +118,22 @@ def test_a_killed_qualification_leaves_an_interrupted_record(tmp_path: Path) -> 
     record = json.loads((out / "record.json").read_text())
     assert record["verdict"] == "interrupted"
     assert _gate(out / "record.json").returncode == 2
+
+
+def test_the_gate_refuses_any_incomplete_record_that_is_not_a_fail(tmp_path: Path) -> None:
+    from hil.gate import parse_record
+
+    base = {"schema": "agrihil.qualification/1", "run_id": "r", "dut": {"name": "d"},
+            "measurements": [], "tests_planned": 18, "tests_completed": 13}
+    refused = [("interrupted", True), ("interrupted", False), ("pass", False),
+               ("error", False)]
+    for verdict, complete in refused:
+        rec = parse_record({**base, "verdict": verdict, "complete": complete}, path="r.json")
+        reason = rec.incomplete_reason()
+        assert reason and "after 13 of 18 tests" in reason, (verdict, complete)
+    for verdict, complete in [("fail", False), ("pass", True), ("error", True)]:
+        rec = parse_record({**base, "verdict": verdict, "complete": complete}, path="r.json")
+        assert rec.incomplete_reason() is None
+    old = parse_record({k: v for k, v in {**base, "verdict": "pass"}.items()
+                        if not k.startswith("tests_")}, path="r.json")
+    assert old.complete and old.incomplete_reason() is None   # records from before
