@@ -11,6 +11,7 @@ import math
 import os
 from pathlib import Path
 
+from hil.dut.factory import check_bus_for_dut, in_process_bus
 from hil.errors import ConfigError
 from hil.softbus.server import DEFAULT_PORT
 
@@ -18,8 +19,9 @@ from hil.softbus.server import DEFAULT_PORT
 #: as JSON/TOML integers (64-bit): 0 .. 2**63 - 1
 SEED_MAX = 2**63 - 1
 
-#: bus specs whose frames never leave the rig's process: a DUT in another process cannot join
-IN_PROCESS_BUSES = ("virtual", "inline")
+__all__ = ["SEED_MAX", "add_bus_clock", "add_host_port", "check_bus_for_dut", "check_log_path",
+           "check_positive_seconds", "check_seed", "check_writable_file", "in_process_bus",
+           "port_number", "prepare_out_dir"]
 
 
 def add_host_port(parser: argparse.ArgumentParser) -> None:
@@ -114,31 +116,3 @@ def check_log_path(path: str | Path, option: str = "--log") -> Path:
         raise ConfigError(f"{target}: python-can cannot write a {target.suffix or 'suffix-less'} "
                           f"log; use one of {', '.join(writers)}", key=option)
     return check_writable_file(target, option)
-
-
-def in_process_bus(bus: str) -> bool:
-    """True for a bus spec that exists only inside the rig's process."""
-    return bus in IN_PROCESS_BUSES or bus.startswith("virtual:") or bus.startswith("virtual,")
-
-
-def check_bus_for_dut(bus: str, dut_kind: str, *, inprocess_twin: bool = False) -> None:
-    """Refuse a bus a DUT of ``dut_kind`` cannot join, naming the buses that work.
-
-    Parameters
-    ----------
-    bus : str
-        The ``--bus`` spec.
-    dut_kind : str
-        The profile's ``dut.kind`` (``firmware``, ``daemon``, ``inprocess``, ``physical``).
-    inprocess_twin : bool
-        The profile names an in-process twin (``launch.inprocess``): a daemon then runs on
-        ``inline`` in-process.
-    """
-    if not in_process_bus(bus) or dut_kind == "inprocess":
-        return
-    if bus == "inline" and inprocess_twin and dut_kind == "daemon":
-        return
-    works = "softbus (the default), socketcand:HOST:PORT/CH, socketcan:IFACE"
-    raise ConfigError(f"{bus} lives inside the rig's process, and a {dut_kind} DUT runs "
-                      f"in a process of its own (or on its own hardware): use {works}",
-                      key="--bus")
