@@ -41,7 +41,7 @@ from typing import Any
 
 import pytest
 
-from hil.dut.factory import make_dut, profile_run_options
+from hil.dut.factory import check_bus_for_dut, make_dut, profile_run_options
 from hil.dut.profile import DutProfile, load_profile
 from hil.errors import ConfigError, HilError
 from hil.limits import MEASUREMENTS, known_measurement
@@ -80,6 +80,11 @@ def pytest_configure(config: pytest.Config) -> None:
             profile = load_profile(path)
         except ConfigError as exc:
             raise pytest.UsageError(f"--hil-dut: {exc}") from exc
+        try:   # a process DUT on an in-process bus would only time out, run after run
+            check_bus_for_dut(config.getoption("--hil-bus"), profile.dut.kind,
+                              inprocess_twin=bool(profile.launch.inprocess))
+        except ConfigError as exc:
+            raise pytest.UsageError(f"--hil-bus: {exc}") from exc
         seed = config.getoption("--hil-seed")
         if seed is not None and not 0 <= seed <= 2**63 - 1:   # a setup error, not the DUT's
             raise pytest.UsageError(f"--hil-seed: {seed} is not a seed: give an integer "

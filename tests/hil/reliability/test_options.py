@@ -135,3 +135,17 @@ def test_a_bug_is_an_internal_error_with_the_debug_hint(capsys, monkeypatch) -> 
                         lambda self, argv=None: argparse.Namespace(func=bug, debug=False,
                                                                    verbose=0))
     _one_line_exit_2(capsys, ["run"], "internal error", "KeyError", "--debug")
+
+
+def test_pytest_with_a_process_dut_on_the_virtual_bus_is_a_usage_error(tmp_path) -> None:
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-m", "pytest", str(ROOT / "test_suites" /
+                                                               "fertilizer"),
+                           "-c", str(ROOT / "test_suites" / "pytest.ini"),
+                           "-p", "no:cacheprovider", "--hil-dut", FIRMWARE,
+                           "--hil-bus", "virtual", "--hil-report", str(tmp_path / "r")],
+                          cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 4, proc.stdout[-2000:] + proc.stderr[-2000:]   # usage error
+    assert "--hil-bus: [--bus] virtual lives inside the rig's process" in proc.stderr
