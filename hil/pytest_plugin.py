@@ -446,10 +446,6 @@ class QualificationSession:
             "started_at": self.started_at,
             "wall_s": round(time.perf_counter() - self.t0, 3),
             "verdict": self._verdict(exitstatus),
-            "complete": self.complete(exitstatus),
-            "tests_planned": len(self.planned),
-            "tests_completed": len(self.completed_tests() & set(self.planned)),
-            "tests_not_run": [n for n in self.planned if n not in self.completed_tests()],
             "dut": {**self.profile.identity(), "parameters": self.profile.parameters},
             "rig": {"name": rig_cls.name, **_rig_config_identity(rig_cls, self.profile)},
             "bus": self.bus, "clock": self.clock, "seed": self.seed,
@@ -462,6 +458,12 @@ class QualificationSession:
             "tests": self.tests,
             "runs": runs,
             "timing": worst,
+            # only in a record of a qualification that did not run all its tests
+            **({} if self.complete(exitstatus) else {
+                "complete": False, "tests_planned": len(self.planned),
+                "tests_completed": len(self.completed_tests() & set(self.planned)),
+                "tests_not_run": [n for n in self.planned if n not in self.completed_tests()],
+            }),
         }
 
 

@@ -147,7 +147,9 @@ class _Loop:
         #: time a DUT silent for longer than ``silence_limit_s`` has stopped answering (in
         #: lockstep the SYNC barrier's timeout says it)
         self.command_ids = frozenset(rig.command_ids())
-        self.last_command_s = 0.0
+        #: None until the DUT's first command frame: only a DUT that answered can stop
+        #: answering (a DUT silent by design, a CANopen master's test, say, is left alone)
+        self.last_command_s: float | None = None
         self.silence_limit_s = options.step_timeout_s
 
     def _log(self, msg: can.Message, *, rx: bool) -> None:
@@ -298,8 +300,9 @@ class _Loop:
 
     def _check_answering(self) -> None:
         """Real time: a DUT whose command frames stopped for longer than the limit has stopped
-        answering (a hang), which fails the run as a crash does."""
-        if not self.command_ids:
+        answering (a hang), which fails the run as a crash does. A DUT that never sent one
+        is not judged here (in lockstep it fails the first SYNC)."""
+        if not self.command_ids or self.last_command_s is None:
             return
         silent_s = self.clock.time_s - self.last_command_s
         if silent_s > self.silence_limit_s:

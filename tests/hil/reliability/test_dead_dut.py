@@ -58,8 +58,10 @@ def test_a_dut_that_hangs_in_lockstep_stopped_answering(dying_profile, tmp_path:
 
 @pytest.mark.realtime
 @pytest.mark.parametrize(("how", "says"), [
-    ("hang:20", r"the DUT stopped answering at t = (1\.9|2\.0|2\.1) s; no command frame"),
-    ("segv:20", r"the DUT exited with SIGSEGV at t = (1\.9|2\.0|2\.1|2\.2) s"),
+    # real time on a loaded machine: the SYNC the DUT dies at is the 21st, checked within a
+    # control period or a few
+    ("hang:20", r"the DUT stopped answering at t = (1\.9|2\.\d) s; no command frame"),
+    ("segv:20", r"the DUT exited with SIGSEGV at t = (1\.9|2\.\d|3\.\d) s"),
 ])
 def test_a_dut_that_stops_in_real_time_fails_the_run(dying_profile, tmp_path: Path, how: str,
                                                      says: str) -> None:
