@@ -22,7 +22,7 @@ from hil.gate import load_record
 ROOT = Path(__file__).resolve().parents[3]
 PROFILE = ROOT / "dut_profiles" / "fertilizer-piecewise-pid-daemon.toml"
 HIL = [sys.executable, "-m", "hil"]
-#: ~15 s of suites on the inline bus: every moment below falls inside the qualification
+#: 9 tests on the inline bus (3-15 s, by the machine's load)
 SELECTION = "test_flow_step or test_bench_accuracy or test_field_accuracy"
 
 
@@ -30,7 +30,24 @@ def _qualify(out: Path) -> subprocess.Popen[str]:
     return subprocess.Popen([*HIL, "qualify", str(PROFILE), "--bus", "inline", "--out",
                              str(out), "-k", SELECTION],
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            text=True)
+                            text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+
+
+def _wait_for_moment(proc: subprocess.Popen[str], moment: str) -> str:
+    """Block until the qualification reaches ``moment``; the output read so far."""
+    if moment == "start":
+        time.sleep(0.3)                      # Python still starting, or options being checked
+        return ""
+    want = {"collected": "collected", "first-test": "PASSED", "fourth-test": "PASSED"}[moment]
+    needed = 4 if moment == "fourth-test" else 1
+    seen, text = 0, ""
+    assert proc.stdout is not None
+    while seen < needed:
+        line = proc.stdout.readline()
+        assert line, f"the qualification ended before {moment}:\n{text}"
+        text += line
+        seen += want in line
+    return text
 
 
 def _gate(record: Path) -> subprocess.CompletedProcess[str]:
@@ -51,23 +68,25 @@ def _passing_record(out: Path) -> None:
 
 @pytest.mark.parametrize("first_signal", [
     signal.SIGINT, pytest.param(signal.SIGTERM, marks=pytest.mark.slow)])
-@pytest.mark.parametrize("at_s", [0.3, 2.5, 6.0])
+@pytest.mark.parametrize("moment", ["start", "collected", "first-test", "fourth-test"])
 def test_interrupt_at_any_moment_leaves_a_record_no_gate_passes(
-        tmp_path: Path, at_s: float, first_signal: int) -> None:
+        tmp_path: Path, moment: str, first_signal: int) -> None:
     out = tmp_path / "qual"
     _passing_record(out)
     proc = _qualify(out)
-    time.sleep(at_s)
+    before = _wait_for_moment(proc, moment)
     proc.send_signal(first_signal)
     time.sleep(0.2)
     if proc.poll() is None:
         proc.send_signal(signal.SIGINT)
     output, _ = proc.communicate(timeout=120)
+    output = before + output
     record_path = out / "record.json"
     record = json.loads(record_path.read_text())       # valid JSON, whole
     if record["run_id"] == "old":
         # interrupted while Python was still starting or the options were being checked
         # (before the qualification began): --out is untouched and hil says so
+        assert moment == "start", output
         assert proc.returncode in (130, -first_signal), output
         assert proc.returncode < 0 or "before the" in output, output
         return
@@ -112,7 +131,7 @@ def test_a_killed_qualification_leaves_an_interrupted_record(tmp_path: Path) -> 
     out = tmp_path / "qual"
     _passing_record(out)
     proc = _qualify(out)
-    time.sleep(4.0)
+    _wait_for_moment(proc, "first-test")
     os.kill(proc.pid, signal.SIGKILL)
     proc.communicate(timeout=60)
     record = json.loads((out / "record.json").read_text())
