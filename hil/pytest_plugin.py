@@ -42,11 +42,12 @@ from typing import Any
 import pytest
 
 from hil.dut.build import with_build_id
-from hil.dut.factory import make_dut, profile_run_options
+from hil.dut.factory import check_bus_for_dut, make_dut, profile_run_options
 from hil.dut.profile import DutProfile, load_profile
 from hil.errors import ConfigError, HilError
 from hil.limits import MEASUREMENTS, default_limit, known_measurement
 from hil.measurements import Measurement, Outcome
+from hil.record.atomic import write_json_atomic
 from hil.record.recorder import versions
 from hil.rig import Rig, RunOptions, RunResult, load_rig, run_scenario
 from hil.rig.scenario import Scenario
@@ -83,6 +84,15 @@ def pytest_configure(config: pytest.Config) -> None:
             profile = with_build_id(load_profile(path), config.getoption("--hil-build-id"))
         except ConfigError as exc:
             raise pytest.UsageError(f"--hil-dut: {exc}") from exc
+        try:   # a process DUT on an in-process bus would only time out, run after run
+            check_bus_for_dut(config.getoption("--hil-bus"), profile.dut.kind,
+                              inprocess_twin=bool(profile.launch.inprocess))
+        except ConfigError as exc:
+            raise pytest.UsageError(f"--hil-bus: {exc}") from exc
+        seed = config.getoption("--hil-seed")
+        if seed is not None and not 0 <= seed <= 2**63 - 1:   # a setup error, not the DUT's
+            raise pytest.UsageError(f"--hil-seed: {seed} is not a seed: give an integer "
+                                    f"0 .. 2**63-1")
         session = QualificationSession(
             profile=profile, bus=config.getoption("--hil-bus"),
             clock=config.getoption("--hil-clock"),
@@ -163,6 +173,15 @@ class QualificationSession:
     runs: dict[tuple[Any, ...], _RunEntry] = field(default_factory=dict)
     by_item: dict[str, list[Measurement]] = field(default_factory=dict)
     invalid_bench: dict[str, str] = field(default_factory=dict)
+    #: node ids of the tests selected to run (set when collection finishes)
+    planned: list[str] = field(default_factory=list)
+    #: a SIGINT/SIGTERM (KeyboardInterrupt) ended the session early
+    interrupted: bool = False
+    #: runs each test used (node id -> results), to judge what the test's code raised
+    runs_of_test: dict[str, list[RunResult]] = field(default_factory=dict)
+    #: tests failed because their DUT stopped (node id -> "the DUT stopped at t = … s")
+    dut_failures: dict[str, str] = field(default_factory=dict)
+    _config: pytest.Config | None = None
 
     # --- runs ---------------------------------------------------------------------------------
     def run(self, nodeid: str, rig_cls: type[Rig], scenario: Scenario | str, *,
@@ -183,6 +202,7 @@ class QualificationSession:
                clock)
         cached = self.runs.get(key)
         if cached is not None:
+            self.runs_of_test.setdefault(nodeid, []).append(cached.result)
             return cached.result
         rel = f"runs/{_slug(nodeid)}{'-' + _slug(label) if label else ''}"
         out_dir = self.report_dir / rel
@@ -197,6 +217,7 @@ class QualificationSession:
         self.runs[key] = _RunEntry(result, rel, scenario.name)
         if profile is self.profile:     # bus conformance of the DUT under qualification
             self._conformance(nodeid, rig_cls, result)
+        self.runs_of_test.setdefault(nodeid, []).append(result)
         timing = result.record.get("timing") or {}
         if timing.get("mode") == "realtime" and not timing.get("valid", True):
             self.invalid_bench[nodeid] = rel
@@ -232,7 +253,7 @@ class QualificationSession:
                               f"(hil/limits.py) for the {rig} rig")
         if run is not None and run.record.get("error"):
             value = math.nan
-            note = (note + "; " if note else "") + f"run ended early: {run.record['error']}"
+            note = _stopped_reason(run) + (f"; {note}" if note else "")
         limit = self.profile.limit(name)
         low, high = (limit.low, limit.high) if limit else default_limit(name)
         m = Measurement(name, float(value), MEASUREMENTS[name].unit, low=low, high=high,
@@ -249,7 +270,61 @@ class QualificationSession:
         self.by_item.setdefault(nodeid, []).append(m)
         return m
 
+    def dead_dut_reason(self, nodeid: str) -> str | None:
+        """Why a test's runs say nothing about its measurements (its DUT stopped), or None."""
+        for result in self.runs_of_test.get(nodeid, ()):
+            if result.record.get("error"):
+                return _stopped_reason(result)
+        return None
+
     # --- pytest hooks ---------------------------------------------------------------------------
+    @pytest.hookimpl(wrapper=True)
+    def pytest_pyfunc_call(self, pyfuncitem: pytest.Function) -> Generator[None, Any, Any]:
+        """A test whose run ended because its DUT stopped fails with that reason; what its
+        code raised computing on the short traces is not a suite error (and not shown)."""
+        try:
+            return (yield)
+        except Exception as exc:
+            reason = self.dead_dut_reason(pyfuncitem.nodeid)
+            if reason is None:
+                raise
+            self.dut_failures[pyfuncitem.nodeid] = reason
+            failed = self._fail_unmeasured(pyfuncitem)
+            message = (f"{reason}; the test could not compute its measurements "
+                       f"({type(exc).__name__}: {exc})"
+                       + (f"; recorded as failed: {', '.join(failed)}" if failed else ""))
+        pytest.fail(message, pytrace=False)    # outside the except: no exception chain
+
+    def _fail_unmeasured(self, item: pytest.Function) -> list[str]:
+        """Record, as failed (NaN, with the reason), the measurements a test whose DUT stopped
+        did not get to: the catalogue names its code names (literally or as a parameter),
+        with the test's other parameters as conditions (the suites' convention)."""
+        import inspect
+
+        rig = self.profile.dut.rig.replace("-", "_")
+        params = dict(getattr(getattr(item, "callspec", None), "params", {}) or {})
+        try:
+            source = inspect.getsource(item.obj)
+        except (OSError, TypeError):
+            source = ""
+        names = [n for n in re.findall(r"""hil_measure\(\s*["']([\w.]+)["']""", source)]
+        names += [v for v in params.values() if isinstance(v, str)]
+        names = [n for n in dict.fromkeys(names) if known_measurement(n, rig)]
+        conditions = {k: v for k, v in params.items()
+                      if isinstance(v, int | float | bool) or (isinstance(v, str)
+                                                               and v not in names)}
+        conditions = {k: v for k, v in conditions.items()
+                      if not (isinstance(v, str) and k == "scenario")}
+        done = {m.name for m in self.by_item.get(item.nodeid, [])}
+        dead = next((r for r in self.runs_of_test.get(item.nodeid, ())
+                     if r.record.get("error")), None)
+        failed = []
+        for name in names:
+            if name not in done:
+                self.measure(item.nodeid, name, math.nan, conditions=conditions, run=dead)
+                failed.append(name)
+        return failed
+
     @pytest.hookimpl(hookwrapper=True)
     def pytest_runtest_makereport(self, item: pytest.Item,
                                   call: pytest.CallInfo[None]) -> Generator[None, Any, None]:
@@ -275,7 +350,27 @@ class QualificationSession:
                      + (f" - {m.note}" if m.note else "") for m in bad]
             report.longrepr = "measurements out of limits:\n  " + "\n  ".join(lines)
 
+    @pytest.hookimpl(trylast=True)     # after the terminal's own PASSED/FAILED
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
+        self._log_test(report)
+        if report.when == "call":
+            self._print_measurements(report)
+
+    def _print_measurements(self, report: pytest.TestReport) -> None:
+        """Each measurement of the test as it is judged (verbose runs: ``hil qualify``)."""
+        from hil.console import measurement_line
+
+        config = self._config
+        terminal = config.pluginmanager.get_plugin("terminalreporter") if config else None
+        if terminal is None or config is None or config.get_verbosity() < 1:
+            return
+        terminal.ensure_newline()
+        for m in self.measurements:
+            if m["test"] == report.nodeid:
+                terminal.write_line("    " + measurement_line(m),
+                                    red=m["outcome"] in ("fail", "error"))
+
+    def _log_test(self, report: pytest.TestReport) -> None:
         if report.when == "call" or (report.when == "setup" and report.outcome != "passed"):
             message = ""
             if report.outcome != "passed" and report.longrepr is not None:
@@ -284,10 +379,18 @@ class QualificationSession:
             self.tests.append({"nodeid": report.nodeid, "outcome": report.outcome,
                                "duration_s": round(report.duration, 3), "message": message})
 
+    def pytest_collection_finish(self, session: pytest.Session) -> None:
+        self.planned = [item.nodeid for item in session.items]
+        self._config = session.config
+
+    def pytest_keyboard_interrupt(self, excinfo: Any) -> None:
+        self.interrupted = True
+
     def pytest_sessionfinish(self, session: pytest.Session, exitstatus: int) -> None:
         record = self.record(exitstatus)
         self.report_dir.mkdir(parents=True, exist_ok=True)
-        (self.report_dir / "record.json").write_text(json.dumps(record, indent=2, default=str))
+        # atomic: a second Ctrl-C or a kill while writing leaves the old file or the new one
+        write_json_atomic(self.report_dir / "record.json", record)
         from hil.report import write_html
 
         try:
@@ -296,25 +399,49 @@ class QualificationSession:
             session.config.stash[_REPORT_ERROR] = f"report.html not written: {exc}"
 
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
+        from hil.console import summary_lines
+
         error = terminalreporter.config.stash.get(_REPORT_ERROR, None)
         verdict = self._verdict()
         terminalreporter.write_sep("=", f"agrihil qualification of {self.profile.name}: "
                                         f"{verdict.upper()}")
-        counts: dict[str, int] = {}
-        for m in self.measurements:
-            counts[m["outcome"]] = counts.get(m["outcome"], 0) + 1
-        terminalreporter.write_line(
-            f"measurements: {', '.join(f'{v} {k}' for k, v in sorted(counts.items())) or 'none'}"
-            f"; record: {self.report_dir / 'record.json'}")
+        not_run = [n for n in self.planned if n not in self.completed_tests()]
+        for line in summary_lines(self.measurements, self.tests, not_run=not_run):
+            terminalreporter.write_line(line)
+        # hil qualify writes into a staging directory and moves the result into its parent
+        shown = (self.report_dir.parent if self.report_dir.name.startswith(".qualify-")
+                 else self.report_dir)
+        terminalreporter.write_line(f"record: {shown / 'record.json'}")
         if error:
             terminalreporter.write_line(f"agrihil: ERROR: {error}", red=True)
 
     # --- the record ----------------------------------------------------------------------------
+    def completed_tests(self) -> set[str]:
+        """Node ids of the tests that ran to their end (passed, failed or skipped)."""
+        return {t["nodeid"] for t in self.tests}
+
+    def complete(self, exitstatus: int | None = None) -> bool:
+        """True when the session ran every selected test and nobody interrupted it."""
+        if self.interrupted or exitstatus == pytest.ExitCode.INTERRUPTED:
+            return False
+        return set(self.planned) <= self.completed_tests()
+
     def _verdict(self, exitstatus: int | None = None) -> str:
+        if not self.complete(exitstatus):
+            stopped_on_failure = (not self.interrupted
+                                  and exitstatus != pytest.ExitCode.INTERRUPTED
+                                  and any(t["outcome"] == "failed" for t in self.tests))
+            # never a pass: some selected tests did not run (a session stopped at its first
+            # failure, pytest -x, is a fail, though incomplete)
+            return "fail" if stopped_on_failure else "interrupted"
         if self.invalid_bench:
             return "invalid-bench"
         if exitstatus in (pytest.ExitCode.INTERRUPTED, pytest.ExitCode.INTERNAL_ERROR,
-                          pytest.ExitCode.USAGE_ERROR) or not self.measurements:
+                          pytest.ExitCode.USAGE_ERROR):
+            return "error"
+        if self.dut_failures:
+            return "fail"     # a DUT that stopped fails, measured or not
+        if not self.measurements:
             return "error"
         if any(m["outcome"] in ("fail", "error") for m in self.measurements):
             return "fail"
@@ -354,6 +481,12 @@ class QualificationSession:
             "tests": self.tests,
             "runs": runs,
             "timing": worst,
+            # only in a record of a qualification that did not run all its tests
+            **({} if self.complete(exitstatus) else {
+                "complete": False, "tests_planned": len(self.planned),
+                "tests_completed": len(self.completed_tests() & set(self.planned)),
+                "tests_not_run": [n for n in self.planned if n not in self.completed_tests()],
+            }),
         }
 
 
@@ -380,6 +513,14 @@ def _dotted(table: dict[str, Any], prefix: str = "") -> dict[str, Any]:
         else:
             out[f"{prefix}{key}"] = value
     return out
+
+
+def _stopped_reason(run: RunResult) -> str:
+    """"the DUT stopped at t = 3.0 s (exited with SIGSEGV)" for a run the DUT ended."""
+    stopped = run.record.get("dut_stopped")
+    if isinstance(stopped, dict) and "t_s" in stopped:
+        return f"the DUT stopped at t = {stopped['t_s']:.1f} s ({stopped.get('what', '?')})"
+    return f"the run ended early: {run.record.get('error')}"
 
 
 def _slug(text: str) -> str:

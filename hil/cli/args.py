@@ -1,15 +1,32 @@
-"""Argument helpers shared by subcommands."""
+"""Argument helpers shared by subcommands, and the checks every option gets before a run.
+
+The checks raise :class:`~hil.errors.ConfigError` naming the option, so ``hil`` exits 2 with
+one line before anything starts (a bad option is never blamed on the DUT).
+"""
 
 from __future__ import annotations
 
 import argparse
+import math
+import os
+from pathlib import Path
 
+from hil.dut.factory import check_bus_for_dut, in_process_bus
+from hil.errors import ConfigError
 from hil.softbus.server import DEFAULT_PORT
+
+#: seeds go to numpy's SeedSequence (any non-negative integer) and into records and baselines
+#: as JSON/TOML integers (64-bit): 0 .. 2**63 - 1
+SEED_MAX = 2**63 - 1
+
+__all__ = ["SEED_MAX", "add_bus_clock", "add_host_port", "check_bus_for_dut", "check_log_path",
+           "check_positive_seconds", "check_seed", "check_writable_file", "in_process_bus",
+           "port_number", "prepare_out_dir"]
 
 
 def add_host_port(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--host", default="127.0.0.1", help="address (default: 127.0.0.1)")
-    parser.add_argument("--port", type=int, default=DEFAULT_PORT,
+    parser.add_argument("--port", type=port_number, default=DEFAULT_PORT,
                         help=f"TCP port (default: {DEFAULT_PORT}; 0 picks a free one)")
 
 
@@ -21,3 +38,81 @@ def add_bus_clock(parser: argparse.ArgumentParser) -> None:
                              "(lockstep with an in-process controller: no threads, fastest)")
     parser.add_argument("--clock", choices=["lockstep", "realtime"], default="lockstep",
                         help="lockstep (virtual time, fast, deterministic) or realtime")
+
+
+def port_number(text: str) -> int:
+    """argparse type of a TCP port: an integer 0..65535 (0: pick a free one)."""
+    try:
+        port = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a port number") from None
+    if not 0 <= port <= 65535:
+        raise argparse.ArgumentTypeError(f"{port} is out of range (0..65535; 0 picks a free "
+                                         f"port)")
+    return port
+
+
+def check_seed(seed: int | None, option: str = "--seed") -> None:
+    """Refuse a seed the seeding cannot take (negative, or beyond 64 bits)."""
+    if seed is not None and not 0 <= seed <= SEED_MAX:
+        raise ConfigError(f"{seed} is not a seed: give an integer 0 .. 2**63-1", key=option)
+
+
+def check_positive_seconds(value: float, option: str) -> None:
+    """Refuse a duration that is not a finite number of seconds above zero."""
+    if not (math.isfinite(value) and value > 0):
+        raise ConfigError(f"{value} is not a duration: give a finite number of seconds > 0",
+                          key=option)
+
+
+def prepare_out_dir(path: str | Path, option: str = "--out") -> Path:
+    """Create the output directory ``path`` (or check it) and prove it writable.
+
+    Raises :class:`ConfigError` when ``path`` is an existing file, cannot be created, or
+    cannot be written.
+    """
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"{out} exists and is not a directory", key=option)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"cannot create {out}: {exc.strerror or exc}", key=option) from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise ConfigError(f"{out} is not writable", key=option)
+    return out
+
+
+def check_writable_file(path: str | Path, option: str, *, make_dirs: bool = False) -> Path:
+    """Refuse a file path that cannot be written: the path an existing directory, its
+    directory missing (unless ``make_dirs``: then the nearest existing ancestor must be a
+    writable directory), a file in the way, or no permission."""
+    target = Path(path)
+    if target.is_dir():
+        raise ConfigError(f"{target} is a directory, not a file", key=option)
+    parent = target.absolute().parent
+    if make_dirs:
+        while not parent.exists() and parent != parent.parent:
+            parent = parent.parent
+    if not parent.is_dir():
+        why = "is a file" if parent.exists() else "does not exist"
+        raise ConfigError(f"cannot write {target}: {parent} {why}", key=option)
+    if not os.access(parent, os.W_OK | os.X_OK) or (target.exists()
+                                                     and not os.access(target, os.W_OK)):
+        raise ConfigError(f"cannot write {target}: permission denied", key=option)
+    return target
+
+
+def check_log_path(path: str | Path, option: str = "--log") -> Path:
+    """Refuse a bus-log path whose extension python-can cannot write, naming those it can,
+    and one that cannot be written."""
+    import can
+
+    writers = sorted(getattr(can.io.logger, "MESSAGE_WRITERS", {}) or {})
+    target = Path(path)
+    suffixes = [s.lower() for s in target.suffixes]
+    known = [s for s in suffixes if s in writers]
+    if writers and not known:
+        raise ConfigError(f"{target}: python-can cannot write a {target.suffix or 'suffix-less'} "
+                          f"log; use one of {', '.join(writers)}", key=option)
+    return check_writable_file(target, option)

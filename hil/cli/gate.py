@@ -18,6 +18,7 @@ import sys
 from datetime import UTC, datetime
 from pathlib import Path
 
+from hil.cli.args import check_writable_file
 from hil.errors import ConfigError
 from hil.gate import (
     DEFAULT_TOLERANCES,
@@ -63,7 +64,15 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
 
 
 def _run(args: argparse.Namespace) -> int:
+    if args.update_baseline and args.baseline:
+        check_writable_file(args.baseline, "--baseline", make_dirs=True)
+    if args.summary:
+        check_writable_file(args.summary, "--summary")
     record = load_record(args.record)
+    incomplete = record.incomplete_reason()
+    if incomplete:   # an interrupted qualification is never judged, however it reads
+        print(f"hil: error: {incomplete}", file=sys.stderr)
+        return 2
     tolerances = load_tolerances(args.tolerance) if args.tolerance else DEFAULT_TOLERANCES
     if args.update_baseline and not args.baseline:
         raise ConfigError("--update-baseline needs --baseline PATH (where to write it)",

@@ -1,6 +1,7 @@
 """Entry point of the ``hil`` command.
 
-Exit status: 0 pass, 1 fail (a run or a check failed), 2 usage or setup error.
+Exit status: 0 pass, 1 fail (a run or a check failed, the DUT stopped), 2 usage or setup
+error (one line; an internal error says so and asks for ``--debug``), 130 interrupted.
 ``--debug`` shows tracebacks instead of one-line errors.
 """
 
@@ -13,6 +14,7 @@ import signal
 import sys
 from collections.abc import Sequence
 from types import FrameType
+from typing import Any, NoReturn
 
 from hil import __version__
 from hil.errors import HilError
@@ -30,12 +32,38 @@ class Terminated(KeyboardInterrupt):
     """SIGTERM, turned into an exception so every ``with`` block flushes what it recorded."""
 
 
-def _on_sigterm(signum: int, frame: FrameType | None) -> None:
-    raise Terminated(f"signal {signum}")
+class _Interrupts:
+    """SIGINT and SIGTERM: the first one raises (``KeyboardInterrupt`` / :class:`Terminated`)
+    so every ``with`` block writes what it recorded; every later one is counted and ignored,
+    so a second Ctrl-C cannot cut the writing of the record short (SIGKILL still ends it)."""
+
+    def __init__(self) -> None:
+        self.count = 0
+
+    def __call__(self, signum: int, frame: FrameType | None) -> None:
+        self.count += 1
+        if self.count == 1:
+            if signum == signal.SIGTERM:
+                raise Terminated(f"signal {signum}")
+            raise KeyboardInterrupt
+        print(f"hil: {signal.Signals(signum).name} again: still writing what was recorded "
+              f"(SIGKILL abandons it)", file=sys.stderr, flush=True)
+
+
+#: how many SIGINT/SIGTERM the running command has received (0: none)
+INTERRUPTS = _Interrupts()
+_on_sigterm = INTERRUPTS   # the name earlier code installs as the SIGTERM handler
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, with a usage error on one line (and where to read the usage)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_SETUP, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="hil", description="agrihil: hardware-in-the-loop rigs for agricultural CAN "
                                 "controllers")
     parser.add_argument("--version", action="version", version=f"agrihil {__version__}")
@@ -50,14 +78,21 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
+    INTERRUPTS.count = 0
+    previous = {sig: signal.signal(sig, INTERRUPTS) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
+        parser = build_parser()
         args = parser.parse_args(argv)
     except SystemExit as exc:  # argparse exits 2 on usage errors, 0 on --help
+        _restore(previous)
         return int(exc.code or 0)
+    except KeyboardInterrupt:   # before the command began: nothing was touched
+        _restore(previous)
+        print("hil: interrupted before the command began; nothing was written",
+              file=sys.stderr)
+        return 130
     level = logging.WARNING - 10 * min(args.verbose, 2)
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
-    previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         return int(args.func(args))
     except KeyboardInterrupt:
@@ -68,5 +103,38 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         print(f"hil: error: {exc}", file=sys.stderr)
         return EXIT_SETUP
+    except (OSError, ValueError, OverflowError) as exc:
+        # what user input provokes from the libraries (a path that cannot be written, a
+        # number out of range, a log format python-can does not know): one line, exit 2
+        if args.debug:
+            raise
+        print(f"hil: error: {_one_line(exc)}", file=sys.stderr)
+        return EXIT_SETUP
+    except Exception as exc:
+        # a bug of agrihil's, not the user's: said as such, never swallowed silently
+        if args.debug:
+            raise
+        print(f"hil: internal error: {type(exc).__name__}: {_one_line(exc, kind=False)} "
+              f"(a bug: rerun with --debug for the traceback and report it)", file=sys.stderr)
+        return EXIT_SETUP
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        _restore(previous)
+
+
+def _one_line(exc: BaseException, *, kind: bool = True) -> str:
+    """An exception as one line: an OSError's file and reason, else its message."""
+    if isinstance(exc, OSError) and exc.strerror:
+        text = f"{exc.filename}: {exc.strerror}" if exc.filename else exc.strerror
+    else:
+        text = str(exc) or type(exc).__name__
+        if kind and not isinstance(exc, HilError):
+            text = f"{text} ({type(exc).__name__})"
+    return " ".join(text.split())
+
+
+def _restore(previous: dict[signal.Signals, Any]) -> None:
+    """Put the caller's handlers back; after an interruption, ignore SIGINT/SIGTERM instead:
+    a second Ctrl-C between the command's end and the process's must not turn the exit
+    status 130 into death by signal."""
+    for sig, handler in previous.items():
+        signal.signal(sig, handler if INTERRUPTS.count == 0 else signal.SIG_IGN)

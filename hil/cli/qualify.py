@@ -5,30 +5,45 @@
 
 Writes ``record.json``, ``junit.xml``, ``report.html`` and one directory per scenario run
 (bus logs, traces, the DUT's output) into ``--out``. Exit 0 when the DUT qualifies, 1 when it
-does not, 2 on setup errors (bad profile, build failure, invalid bench timing).
+does not, 2 on setup errors (bad option or profile, build failure, invalid bench timing), 130
+when interrupted.
+
+What an interruption leaves (see docs/guide/reliability.md): before anything runs,
+``record.json`` is replaced (atomically) by a record with the verdict ``interrupted`` (the one
+it replaces is kept as ``record.previous.json``); the new qualification writes into a hidden
+staging directory inside ``--out`` and only when it ends (finished or interrupted) are its
+runs, report and record moved in, the record last. A kill at any moment leaves a record
+that no gate passes.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import datetime as dt
 import json
+import os
 import shutil
+import signal
 import sys
+import uuid
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
-from hil.cli.args import add_bus_clock
+from hil.cli.args import add_bus_clock, check_bus_for_dut, check_seed, prepare_out_dir
+from hil.cli.suites import suite_location
 from hil.dut.build import ensure_built, with_build_id
-from hil.dut.profile import load_profile
-from hil.errors import HilError
+from hil.dut.profile import DutProfile, load_profile
+from hil.errors import ConfigError, HilError
+from hil.record.atomic import write_json_atomic
 
 DEFAULT_SUITES = "fast,robustness"
-EXIT_BY_VERDICT = {"pass": 0, "fail": 1}
-
-
-def suites_dir() -> Path:
-    import test_suites
-
-    return Path(test_suites.__file__).resolve().parent
+EXIT_BY_VERDICT = {"pass": 0, "fail": 1, "interrupted": 130}
+#: what a qualification writes into --out (moved in from the staging directory, record last)
+OUTPUTS = ("runs", "junit.xml", "report.html")
+STAGING_PREFIX = ".qualify-"
+SCHEMA = "agrihil.qualification/1"
 
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -51,9 +66,23 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
     qualify.set_defaults(func=_qualify)
 
 
-def pytest_args(args: argparse.Namespace, out: Path) -> list[str]:
-    root = suites_dir()
-    argv = [str(root), "-c", str(root / "pytest.ini"), "--rootdir", str(root),
+def check_suites(text: str) -> list[str]:
+    """The suite names of ``--suite``; a name that is no suite is refused, naming them all."""
+    from hil.pytest_plugin import SUITES
+
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    unknown = [n for n in names if n not in (*SUITES, "all")]
+    if unknown or not names:
+        raise ConfigError(f"{', '.join(unknown) or repr(text)}: no such suite; choose from "
+                          f"{', '.join(SUITES)}, all (comma-separated)", key="--suite")
+    return names
+
+
+def pytest_args(args: argparse.Namespace, out: Path, rig: str) -> list[str]:
+    """pytest's argv for the suites of ``rig`` only (the other rigs' suites are not even
+    collected), writing into ``out``."""
+    suites, ini = suite_location(rig)
+    argv = [str(suites), "-c", str(ini), "--rootdir", str(ini.parent),
             "-p", "no:cacheprovider",
             "--hil-dut", str(args.profile), "--hil-bus", args.bus, "--hil-clock", args.clock,
             "--hil-report", str(out), "--hil-suite", args.suite,
@@ -68,16 +97,113 @@ def pytest_args(args: argparse.Namespace, out: Path) -> list[str]:
     return argv
 
 
-def _qualify(args: argparse.Namespace) -> int:
-    import pytest
+def interrupted_record(profile: DutProfile, args: argparse.Namespace, *, run_id: str,
+                       note: str) -> dict[str, Any]:
+    """A qualification record that says "this qualification did not finish": valid for the
+    gate and the report, with no measurement and the verdict ``interrupted``."""
+    return {"schema": SCHEMA, "run_id": run_id,
+            "started_at": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+            "wall_s": 0.0, "verdict": "interrupted", "complete": False,
+            "tests_planned": None, "tests_completed": 0, "tests_not_run": [],
+            "note": note,
+            "dut": {**profile.identity(), "parameters": profile.parameters},
+            "rig": {"name": profile.dut.rig}, "bus": args.bus, "clock": args.clock,
+            "seed": args.seed, "suites": check_suites(args.suite), "versions": {},
+            "limits": {}, "measurements": [], "tests": [], "runs": [], "timing": None}
 
+
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """SIGINT/SIGTERM wait (pending) while the outputs are moved in, then arrive."""
+    held = {signal.SIGINT, signal.SIGTERM}
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def _clear_stale_staging(out: Path) -> None:
+    """Staging directories of qualifications whose process is gone (killed) are garbage."""
+    for stale in out.glob(f"{STAGING_PREFIX}*"):
+        pid = stale.name.removeprefix(STAGING_PREFIX).split("-", 1)[0]
+        if pid.isdigit() and not Path(f"/proc/{pid}").exists():
+            shutil.rmtree(stale, ignore_errors=True)
+
+
+def promote(stage: Path, out: Path) -> None:
+    """Move the staged outputs into ``out``: each old one aside only once its replacement
+    is there to take its place, ``record.json`` last and atomically."""
+    trash = stage / ".replaced"
+    trash.mkdir(exist_ok=True)
+    for name in OUTPUTS:
+        new = stage / name
+        if not new.exists():
+            continue
+        old = out / name
+        if old.exists() or old.is_symlink():
+            os.replace(old, trash / name)
+        os.replace(new, old)
+    os.replace(stage / "record.json", out / "record.json")
+    shutil.rmtree(stage, ignore_errors=True)
+
+
+def _qualify(args: argparse.Namespace) -> int:
+    try:
+        profile, out, stage, run_id = _prepare(args)
+    except KeyboardInterrupt:
+        print("hil: interrupted before the qualification began; --out is untouched",
+              file=sys.stderr)
+        return 130
+    code: int | None = None
+    try:
+        code = _run_suites(args, profile, stage)
+    finally:
+        with _signals_held():
+            if not (stage / "record.json").exists():
+                write_json_atomic(stage / "record.json", interrupted_record(
+                    profile, args, run_id=run_id,
+                    note="interrupted before the suites wrote their record"))
+            promote(stage, out)
+    record = json.loads((out / "record.json").read_text())
+    verdict = record["verdict"]
+    if code is not None and not record.get("tests") and verdict == "error":
+        raise HilError(f"the suites ran no test (pytest exit {code}); see the output above")
+    _print_summary(record, profile, out)
+    return EXIT_BY_VERDICT.get(verdict, 2)
+
+
+def _prepare(args: argparse.Namespace) -> tuple[DutProfile, Path, Path, str]:
+    """Check every option, then stage: from the end of this on, ``record.json`` says the
+    qualification has not finished until it has."""
+    # every option is checked before anything runs: a bad one is exit 2, never the DUT's fault
     # a bad profile (or build id) never starts a run
     profile = with_build_id(load_profile(args.profile), args.build_id)
-    out = Path(args.out)
-    if out.exists() and (out / "record.json").exists():
-        shutil.rmtree(out / "runs", ignore_errors=True)
-        (out / "record.json").unlink()
-    out.mkdir(parents=True, exist_ok=True)
+    check_suites(args.suite)
+    check_seed(args.seed)
+    check_bus_for_dut(args.bus, profile.dut.kind,
+                      inprocess_twin=bool(profile.launch.inprocess))
+    out = prepare_out_dir(args.out)
+    rig = profile.dut.rig
+    suite_location(rig)                            # a rig without suites is a setup error
+    _clear_stale_staging(out)
+    run_id = uuid.uuid4().hex[:12]
+    stage = out / f"{STAGING_PREFIX}{os.getpid()}-{run_id}"
+    # from here on, whatever happens, record.json says this qualification did not finish
+    # until it has; the previous record is kept next to it
+    if (out / "record.json").exists():
+        shutil.copy2(out / "record.json", out / "record.previous.json")
+    with _signals_held():   # the staging directory and the placeholder record, or neither
+        stage.mkdir()
+        write_json_atomic(out / "record.json", interrupted_record(
+            profile, args, run_id=run_id, note="the qualification started and has not "
+                                               "finished (or was killed)"))
+    return profile, out, stage, run_id
+
+
+def _run_suites(args: argparse.Namespace, profile: DutProfile, stage: Path) -> int:
+    import pytest
+
     if args.bus != "inline" and profile.build is not None:
         print(f"hil: building {profile.name} (cached after the first time) ...",
               file=sys.stderr)
@@ -86,17 +212,21 @@ def _qualify(args: argparse.Namespace) -> int:
               f"{build.get('build_dir')}", file=sys.stderr)
     print(f"hil: qualifying {profile.name} {profile.dut.version} on the {profile.dut.rig} rig "
           f"({args.bus}, {args.clock}, suites {args.suite})", file=sys.stderr)
-    code = pytest.main(pytest_args(args, out))
-    record_path = out / "record.json"
-    if not record_path.exists():
-        raise HilError(f"the suites wrote no record (pytest exit {int(code)}); see the "
-                       f"output above")
-    record = json.loads(record_path.read_text())
+    return int(pytest.main(pytest_args(args, stage, profile.dut.rig)))
+
+
+def _print_summary(record: dict[str, Any], profile: DutProfile, out: Path) -> None:
     verdict = record["verdict"]
     counts: dict[str, int] = {}
     for m in record["measurements"]:
         counts[m["outcome"]] = counts.get(m["outcome"], 0) + 1
     summary = ", ".join(f"{n} {k}" for k, n in sorted(counts.items())) or "no measurements"
+    if verdict == "interrupted":
+        done = record.get("tests_completed") or 0
+        planned = record.get("tests_planned")
+        print(f"hil: {profile.name}: INTERRUPTED after {done}"
+              f"{f' of {planned}' if planned is not None else ''} tests ({summary}); "
+              f"{out / 'record.json'} says so (no gate passes it)", file=sys.stderr)
+        return
     print(f"hil: {profile.name}: {verdict.upper()} ({summary}) in {record['wall_s']:.1f} s; "
           f"report: {out / 'report.html'}", file=sys.stderr)
-    return EXIT_BY_VERDICT.get(verdict, 2)

@@ -15,13 +15,20 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from hil.cli.args import add_bus_clock
+from hil.cli.args import (
+    add_bus_clock,
+    check_bus_for_dut,
+    check_positive_seconds,
+    check_seed,
+    prepare_out_dir,
+)
 from hil.dut import DutRunner, InProcessDut
 from hil.dut.build import with_build_id
 from hil.dut.factory import make_dut, profile_run_options
 from hil.dut.profile import load_profile
 from hil.errors import ConfigError
 from hil.rig import Rig, RunOptions, available_rigs, load_rig, run_scenario
+from hil.rig.runner import check_events, check_run
 
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -63,12 +70,18 @@ def _is_profile(dut: str | None) -> bool:
 
 
 def _run(args: argparse.Namespace) -> int:
+    # options first: a bad one is exit 2 before anything is built or started
+    check_seed(args.seed)
+    check_positive_seconds(args.step_timeout, "--step-timeout")
     profile = load_profile(args.dut) if _is_profile(args.dut) else None
     if args.build_id is not None:
         if profile is None:
             raise ConfigError("--build-id needs a DUT profile as --dut (a builtin has none)",
                               key="build_id")
         profile = with_build_id(profile, args.build_id)
+    if profile is not None:
+        check_bus_for_dut(args.bus, profile.dut.kind,
+                          inprocess_twin=bool(profile.launch.inprocess))
     rig_name = args.rig or (profile.dut.rig if profile else None)
     if rig_name is None:
         print("hil: error: --rig is needed (or a DUT profile as --dut)", file=sys.stderr)
@@ -86,7 +99,12 @@ def _run(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 2
     scenario = rig_cls.load_scenario(args.scenario)
+    if str(args.scenario).endswith(".toml"):
+        check_events(scenario, path=str(args.scenario))
     out = Path(args.out or f"runs/{scenario.name}")
+    check_run(scenario, RunOptions(out_dir=out, seed=args.seed,
+                                   step_timeout_s=args.step_timeout))
+    prepare_out_dir(out)
     extra: dict[str, object] = {}
     from_profile: dict[str, Any] = {}
     dut: DutRunner

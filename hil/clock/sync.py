@@ -17,6 +17,8 @@ import can
 from hil.errors import BusError, StepTimeoutError
 
 SYNC_ID = 0x080
+#: while a lockstep step waits, how often it asks whether the DUT is still alive (s)
+ALIVE_POLL_S = 0.05
 
 
 class SyncBarrier:
@@ -38,6 +40,10 @@ class SyncBarrier:
         self.await_any = await_any
         self.counter = 0
         self.syncs_sent = 0
+        #: called while the step waits for the DUT and nothing arrives (every
+        #: ``ALIVE_POLL_S``): raises when the DUT is gone, so a crash ends the step at once
+        #: instead of after the timeout
+        self.alive: Callable[[], None] | None = None
 
     def due(self, tick: int) -> bool:
         return tick % self.period_ticks == 0
@@ -67,9 +73,16 @@ class SyncBarrier:
         pending = set(self.await_ids)
         start = time.monotonic()
         deadline = start + self.timeout_s
+        alive = self.alive
         while pending:
             remaining = deadline - time.monotonic()
-            msg = self.bus.recv(max(0.0, remaining)) if remaining > 0 else None
+            if alive is not None and remaining > 0:
+                msg = self.bus.recv(min(remaining, ALIVE_POLL_S))
+                if msg is None:
+                    alive()
+                    continue
+            else:
+                msg = self.bus.recv(max(0.0, remaining)) if remaining > 0 else None
             if msg is None:
                 missing = (" or " if self.await_any else ", ").join(
                     f"0x{i:X}" for i in sorted(pending))

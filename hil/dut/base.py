@@ -12,6 +12,23 @@ class DutError(HilError, RuntimeError):
     """The DUT crashed, hung, or could not be started."""
 
 
+class DutSetupError(DutError):
+    """The DUT could not be started at all (its command cannot be executed): a setup error,
+    not a DUT failure."""
+
+
+class DutStopped(DutError):
+    """The DUT stopped during a run: it exited (any status), died of a signal, raised, or
+    stopped answering. ``what`` says how ("exited with SIGSEGV"); the runner adds when."""
+
+    def __init__(self, what: str, *, detail: str = "", at_s: float | None = None) -> None:
+        self.what = what
+        self.detail = detail
+        #: when it stopped (simulated time), when known better than "now"
+        self.at_s = at_s
+        super().__init__(f"the DUT {what}" + (f"; {detail}" if detail else ""))
+
+
 class DutRunner(ABC):
     """Runs one controller under test for the length of a run."""
 

@@ -36,6 +36,43 @@ def load_controller(profile: DutProfile) -> Controller:
     return controller
 
 
+#: bus specs whose frames never leave the rig's process: a DUT in another process cannot join
+IN_PROCESS_BUSES = ("virtual", "inline")
+
+
+def in_process_bus(bus: str) -> bool:
+    """True for a bus spec that exists only inside the rig's process."""
+    return bus in IN_PROCESS_BUSES or bus.startswith(("virtual:", "virtual,"))
+
+
+def check_bus_for_dut(bus: str, dut_kind: str, *, inprocess_twin: bool = False) -> None:
+    """Refuse a bus a DUT of ``dut_kind`` cannot join, naming the buses that work.
+
+    Parameters
+    ----------
+    bus : str
+        The ``--bus`` spec.
+    dut_kind : str
+        The profile's ``dut.kind`` (``firmware``, ``daemon``, ``inprocess``, ``physical``).
+    inprocess_twin : bool
+        The profile names an in-process twin (``launch.inprocess``): a daemon then runs on
+        ``inline`` in-process.
+
+    Raises
+    ------
+    ConfigError
+        The bus lives inside the rig's process and the DUT does not.
+    """
+    if not in_process_bus(bus) or dut_kind == "inprocess":
+        return
+    if bus == "inline" and inprocess_twin and dut_kind == "daemon":
+        return
+    works = "softbus (the default), socketcand:HOST:PORT/CH, socketcan:IFACE"
+    raise ConfigError(f"{bus} lives inside the rig's process, and a {dut_kind} DUT runs "
+                      f"in a process of its own (or on its own hardware): use {works}",
+                      key="--bus")
+
+
 def runs_inprocess(profile: DutProfile, bus: str) -> bool:
     """In-process DUTs always; daemons with an in-process twin on the inline bus (lockstep)."""
     kind = profile.dut.kind
@@ -50,10 +87,8 @@ def make_dut(profile: DutProfile, *, bus: str, clock: str,
         dut = InProcessDut(load_controller(profile), factory=lambda: load_controller(profile))
         dut.name = profile.name
         return dut, {}
-    if bus == "inline":
-        raise ConfigError(f"the inline bus runs in-process controllers only; "
-                          f"{profile.name} is a {profile.dut.kind} DUT: use --bus softbus",
-                          key="bus")
+    # before anything is built or started: a process on an in-process bus only times out
+    check_bus_for_dut(bus, profile.dut.kind, inprocess_twin=bool(profile.launch.inprocess))
     if profile.dut.kind == "physical":
         return PhysicalDut(profile), {}
     build = ensure_built(profile)

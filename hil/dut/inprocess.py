@@ -16,7 +16,7 @@ import can
 
 from hil.bus import open_bus
 from hil.bus.inline import InlineBus
-from hil.dut.base import DutError, DutRunner
+from hil.dut.base import DutError, DutRunner, DutStopped
 
 
 class Controller(ABC):
@@ -54,11 +54,28 @@ class InProcessDut(DutRunner):
         self.frames_out = 0
         self._inline = False
 
+    def _stopped(self, exc: BaseException) -> DutStopped:
+        """What the run reports of a controller that raised: any exception, ``SystemExit``
+        (``sys.exit(0)`` too) included: a controller has no business ending the process."""
+        self._failure = exc
+        what = (f"exited (SystemExit({exc.code!r}) in-process)" if isinstance(exc, SystemExit)
+                else f"raised {type(exc).__name__}: {exc}")
+        return DutStopped(what)
+
+    def _guarded(self, call: Callable[[], Any]) -> Any:
+        try:
+            return call()
+        except KeyboardInterrupt:
+            raise
+        except BaseException as exc:   # the DUT failed: reported as such
+            raise self._stopped(exc) from exc
+
     def attach_inline(self, env: dict[str, str] | None = None) -> InlineBus:
         """Run without a thread: the rig's bus calls the controller directly (lockstep)."""
-        self.controller.configure(env or {})
+        self._guarded(lambda: self.controller.configure(env or {}))
+        first = self._guarded(self.controller.on_start)
         bus = InlineBus(self._inline_frame)
-        bus.inject(self.controller.on_start())
+        bus.inject(first)
         self._inline = True
         self._inline_bus = bus
         return bus
@@ -75,10 +92,10 @@ class InProcessDut(DutRunner):
             self.restarts += 1
             self.start(bus_spec, env)
             return before
-        self.controller = self.factory()
-        self.controller.configure(env or {})
+        self.controller = self._guarded(self.factory)
+        self._guarded(lambda: self.controller.configure(env or {}))
         assert self._inline_bus is not None
-        self._inline_bus.inject(self.controller.on_start())
+        self._inline_bus.inject(self._guarded(self.controller.on_start))
         self.restarts += 1
         return {"name": self.name, "kind": "in-process inline", "restarts": self.restarts}
 
@@ -86,17 +103,17 @@ class InProcessDut(DutRunner):
         self.frames_in += 1
         try:
             out = self.controller.on_frame(msg)
-        except Exception as exc:
-            self._failure = exc
-            raise DutError(f"in-process controller {self.name!r} died: "
-                           f"{type(exc).__name__}: {exc}") from exc
+        except KeyboardInterrupt:
+            raise
+        except BaseException as exc:   # SystemExit too: the DUT stopped
+            raise self._stopped(exc) from exc
         self.frames_out += len(out)
         return out
 
     def start(self, bus_spec: str, env: dict[str, str] | None = None) -> None:
-        self.controller.configure(env or {})
+        self._guarded(lambda: self.controller.configure(env or {}))
         self._bus = open_bus(bus_spec)
-        for msg in self.controller.on_start():
+        for msg in self._guarded(self.controller.on_start):
             self._bus.send(msg)
         self._thread = threading.Thread(target=self._run, name=f"dut-{self.name}", daemon=True)
         self._thread.start()
@@ -117,8 +134,7 @@ class InProcessDut(DutRunner):
 
     def check(self) -> None:
         if self._failure is not None:
-            raise DutError(f"in-process controller {self.name!r} died: "
-                           f"{type(self._failure).__name__}: {self._failure}") from self._failure
+            raise self._stopped(self._failure) from self._failure
 
     def stop(self, timeout: float = 5.0) -> dict[str, Any]:
         self._stop.set()

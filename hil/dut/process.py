@@ -10,7 +10,10 @@ Process hygiene is this module's job:
 * :meth:`ProcessDut.check` turns a crash into :class:`DutError` with the exit status;
 * :meth:`ProcessDut.stop` sends SIGTERM to the group, waits ``launch.stop_timeout_s``, then
   SIGKILLs the group and records that the DUT ignored SIGTERM. A finalizer does the same if
-  the rig's process ends without calling ``stop``, so no process is left behind.
+  the rig's process ends without calling ``stop``, so no process is left behind;
+* the DUT dies with the rig's process even when that is SIGKILLed (``PR_SET_PDEATHSIG``), and
+  the :mod:`~hil.lifetime` guardian follows its process tree, so what it started (even in
+  a session of its own) is killed on stop or when the rig's process dies.
 """
 
 from __future__ import annotations
@@ -25,9 +28,10 @@ from pathlib import Path
 from typing import IO, Any
 
 from hil.bus import open_bus
-from hil.dut.base import DutError, DutRunner
+from hil.dut.base import DutError, DutRunner, DutSetupError, DutStopped
 from hil.dut.build import PROJECT_ROOT, expand
 from hil.dut.profile import DutProfile
+from hil.lifetime import die_with_parent, guardian
 
 TAIL_CHARS = 4000
 
@@ -119,10 +123,12 @@ class ProcessDut(DutRunner):
             try:
                 self.proc = subprocess.Popen(self.argv, cwd=PROJECT_ROOT, env=proc_env,
                                              stdin=subprocess.DEVNULL, stdout=out, stderr=err,
-                                             start_new_session=True)
+                                             start_new_session=True,
+                                             preexec_fn=die_with_parent())
             except OSError as exc:
-                raise DutError(f"{self.profile.path}: [launch.command] cannot start "
-                               f"{self.argv[0]!r}: {exc}") from exc
+                raise DutSetupError(f"{self.profile.path}: [launch.command] cannot start "
+                                    f"{self.argv[0]!r}: {exc}") from exc
+            guardian().watch(self.proc.pid)
             self.starts += 1
             self._finalizer = weakref.finalize(self, _kill_group, self.proc.pid,
                                                signal.SIGKILL)
@@ -160,30 +166,33 @@ class ProcessDut(DutRunner):
                 time.sleep(0.02)
         what = (f"its boot-up frame 0x{bootup_id:03X}" if listener is not None
                 else f"{want!r} on its stdout")
-        raise DutError(f"DUT {self.name!r} did not show {what} within "
-                       f"{launch.ready_timeout_s:g} s; stderr:\n{_tail(self.stderr_path)}")
+        raise DutStopped(f"never came up: {self.name!r} did not show {what} within "
+                         f"{launch.ready_timeout_s:g} s",
+                         detail=f"stderr:\n{_tail(self.stderr_path)}")
 
     def _raise_if_exited(self, when: str) -> None:
         assert self.proc is not None
         code = self.proc.poll()
         if code is not None:
-            raise DutError(f"DUT {self.name!r} exited {when} with {self._describe(code)}; "
-                           f"stderr:\n{_tail(self.stderr_path)}")
+            raise DutStopped(f"exited with {self._describe(code, short=True)}"
+                             + (f" {when}" if when else ""),
+                             detail=f"stderr:\n{_tail(self.stderr_path)}")
 
     @staticmethod
-    def _describe(code: int) -> str:
+    def _describe(code: int, *, short: bool = False) -> str:
         if code < 0:
             try:
-                return f"signal {signal.Signals(-code).name}"
+                name = signal.Signals(-code).name
             except ValueError:
-                return f"signal {-code}"
+                name = str(-code)
+            return name if short else f"signal {name}"
         return f"exit status {code}"
 
     # --- health -------------------------------------------------------------------------------
     def check(self) -> None:
         if self.proc is None:
             raise DutError(f"DUT {self.name!r} was never started")
-        self._raise_if_exited("during the run")
+        self._raise_if_exited("")
 
     # --- stop ---------------------------------------------------------------------------------
     def stop(self, timeout: float | None = None) -> dict[str, Any]:
@@ -195,6 +204,7 @@ class ProcessDut(DutRunner):
                                   "ready_s": round(self.ready_s, 3)}
         proc = self.proc
         if proc is not None:
+            guardian().scan(proc.pid)          # the tree as it is, while its root lives
             exited_before = proc.poll()
             ignored = False
             if exited_before is None:
@@ -205,8 +215,12 @@ class ProcessDut(DutRunner):
                     ignored = True
                     _kill_group(proc.pid, signal.SIGKILL)
                     proc.wait(5.0)
-            # whatever the leader did, leave nothing of its group behind
+            # whatever the leader did, leave nothing of its group behind, nor of its tree
+            # (a helper that escaped into a session of its own)
             _kill_group(proc.pid, signal.SIGKILL)
+            escaped = guardian().kill_tree(proc.pid)
+            if escaped:
+                result["killed_descendants"] = escaped
             if self._finalizer is not None:
                 self._finalizer.detach()
             code = proc.returncode

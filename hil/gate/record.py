@@ -18,8 +18,9 @@ from hil.gate.keys import measurement_key
 from hil.measurements import Measurement, Outcome
 
 RECORD_SCHEMA = "agrihil.qualification/1"
-RecordVerdict = Literal["pass", "fail", "invalid-bench", "error"]
-RECORD_VERDICTS: tuple[RecordVerdict, ...] = ("pass", "fail", "invalid-bench", "error")
+RecordVerdict = Literal["pass", "fail", "invalid-bench", "error", "interrupted"]
+RECORD_VERDICTS: tuple[RecordVerdict, ...] = ("pass", "fail", "invalid-bench", "error",
+                                              "interrupted")
 
 _SEVERITY = {Outcome.INFO: 0, Outcome.PASS: 1, Outcome.FAIL: 2, Outcome.ERROR: 3}
 
@@ -100,6 +101,21 @@ class QualificationRecord:
     limits: dict[str, tuple[float | None, float | None]] = field(default_factory=dict)
     #: node ids of suite tests that did not pass (from ``tests``), for the summary
     failed_tests: tuple[str, ...] = ()
+    #: False when the qualification did not run every selected test (the record's
+    #: ``complete``; records written before it existed count as complete)
+    complete: bool = True
+    #: ``tests_completed`` / ``tests_planned`` of the record (None when absent)
+    tests_completed: int | None = None
+    tests_planned: int | None = None
+
+    def incomplete_reason(self) -> str | None:
+        """Why the gate must not judge this record (None: it may)."""
+        if self.verdict != "interrupted" and (self.complete or self.verdict == "fail"):
+            return None      # complete, or incomplete but failed already: judged as a fail
+        done = ("" if self.tests_planned is None else
+                f" after {self.tests_completed} of {self.tests_planned} tests")
+        return (f"{self.path}: the qualification was interrupted{done}; an incomplete record "
+                f"has no verdict: run hil qualify again")
 
     def by_key(self) -> dict[str, RecordMeasurement]:
         return {m.key: m for m in self.measurements}
@@ -137,7 +153,14 @@ def parse_record(data: Any, *, path: str) -> QualificationRecord:
         bus=top.string("bus", required=False), clock=top.string("clock", required=False),
         seed=seed if isinstance(seed, int) and not isinstance(seed, bool) else None,
         suites=tuple(str(s) for s in suites),
-        limits=_parse_limits(top), failed_tests=_failed_tests(top))
+        limits=_parse_limits(top), failed_tests=_failed_tests(top),
+        complete=top.data.get("complete", True) is not False,
+        tests_completed=_count(top.data.get("tests_completed")),
+        tests_planned=_count(top.data.get("tests_planned")))
+
+
+def _count(value: Any) -> int | None:
+    return value if isinstance(value, int) and not isinstance(value, bool) else None
 
 
 def _parse_measurement(item: Any, *, path: str, index: int) -> RecordMeasurement:

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import datetime as dt
 import functools
-import json
 import platform
 import sys
 import traceback
@@ -28,6 +27,7 @@ from typing import Any
 
 from hil.clock.base import TimingHealth
 from hil.measurements import Measurement, Outcome
+from hil.record.atomic import write_json_atomic
 from hil.record.buslog import DEFAULT_FORMATS, BusLog
 from hil.record.traces import TraceSet
 
@@ -164,6 +164,6 @@ class Recorder:
         record = self.record()
         if problems:
             record["recorder_problems"] = problems
-        (self.out_dir / "record.json").write_text(json.dumps(record, indent=2, default=str))
+        write_json_atomic(self.out_dir / "record.json", record)
         self.final_record = record
         return record

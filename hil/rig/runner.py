@@ -26,8 +26,9 @@ import can
 import numpy as np
 
 from hil.bus import open_bus
+from hil.bus.inline import InlineBus
 from hil.clock import SyncBarrier, make_clock
-from hil.dut.base import DutError, DutRunner
+from hil.dut.base import DutError, DutRunner, DutSetupError, DutStopped
 from hil.dut.inprocess import InProcessDut
 from hil.errors import BusError, ConfigError, StepTimeoutError
 from hil.record import Recorder, Verdict
@@ -142,6 +143,14 @@ class _Loop:
         self.foreign_ids: frozenset[int] = frozenset()
         self._flood_window = -1
         self._flood_count = 0
+        #: the DUT's command frames, and when the last one arrived (simulated time): in real
+        #: time a DUT silent for longer than ``silence_limit_s`` has stopped answering (in
+        #: lockstep the SYNC barrier's timeout says it)
+        self.command_ids = frozenset(rig.command_ids())
+        #: None until the DUT's first command frame: only a DUT that answered can stop
+        #: answering (a DUT silent by design, a CANopen master's test, say, is left alone)
+        self.last_command_s: float | None = None
+        self.silence_limit_s = options.step_timeout_s
 
     def _log(self, msg: can.Message, *, rx: bool) -> None:
         self._log_frame(msg, self._now(), rx=rx)
@@ -168,6 +177,8 @@ class _Loop:
     def intake(self, msg: can.Message) -> None:
         self.frames_rx += 1
         self._log(msg, rx=True)
+        if msg.arbitration_id in self.command_ids:
+            self.last_command_s = self.clock.time_s
         if msg.arbitration_id in self.foreign_ids and msg.is_extended_id:
             return  # another node's traffic (bus load): logged, neither rig's nor DUT's
         if self._flood_limit is not None:
@@ -282,9 +293,22 @@ class _Loop:
                         advance(1, dt)
                     if self.check_dut is not None and k >= next_dut_check:
                         self.check_dut()
+                        self._check_answering()
                         next_dut_check = k + dut_check_ticks
         finally:
             self.rec.timing = self.clock.stop()
+
+    def _check_answering(self) -> None:
+        """Real time: a DUT whose command frames stopped for longer than the limit has stopped
+        answering (a hang), which fails the run as a crash does. A DUT that never sent one
+        is not judged here (in lockstep it fails the first SYNC)."""
+        if not self.command_ids or self.last_command_s is None:
+            return
+        silent_s = self.clock.time_s - self.last_command_s
+        if silent_s > self.silence_limit_s:
+            raise DutStopped("stopped answering",
+                             detail=f"no command frame for {silent_s:.1f} s (limit "
+                                    f"{self.silence_limit_s:g} s)", at_s=self.last_command_s)
 
     def _apply(self, event: Any, t: float) -> None:
         if event.set:
@@ -301,6 +325,7 @@ class _Loop:
             if self.restart_dut is None:
                 raise ConfigError("this run cannot restart its DUT", key="events.dut")
             before = self.restart_dut()
+            self.last_command_s = self.clock.time_s    # a fresh DUT: its silence starts now
             self.rig.ctx.note(t, "dut-restart", f"the DUT was restarted (before: "
                               f"{before.get('exit', before.get('kind', '?'))})")
 
@@ -315,10 +340,64 @@ def _record_bus_stats(rec: Recorder, softbus: Any) -> None:
         rec.meta["softbus"] = {"error": str(exc)}
 
 
+#: seeds go to numpy (any non-negative integer) and into records as 64-bit integers
+SEED_MAX = 2**63 - 1
+
+
+def check_events(scenario: Scenario, path: str | None = None) -> None:
+    """Refuse a scenario file whose events come after the end of its run (they would be
+    dropped silently). Not part of :func:`check_run`: code may shorten a packaged scenario
+    on purpose (a short smoke run) and keep its later events unapplied."""
+    for i, event in enumerate(scenario.events):
+        if not math.isfinite(event.at_s) or event.at_s > scenario.duration_s:
+            raise ConfigError(f"scenario {scenario.name}: event at t = {event.at_s} s comes "
+                              f"after the end of the run (duration_s = "
+                              f"{scenario.duration_s:g} s) and would never happen",
+                              path=path, key=f"events[{i}].at_s")
+
+
+def check_run(scenario: Scenario, options: RunOptions) -> None:
+    """Refuse what cannot make a meaningful run, before anything starts (:class:`ConfigError`
+    naming the key): a duration that is not finite, a step timeout that is not a finite
+    number of seconds above zero, a seed out of range."""
+    where = {"path": None}
+    if not (math.isfinite(scenario.duration_s) and scenario.duration_s > 0):
+        raise ConfigError(f"scenario {scenario.name}: duration_s = {scenario.duration_s} is "
+                          f"not a finite number of seconds > 0", key="duration_s", **where)
+    timeout = options.step_timeout_s
+    if not (math.isfinite(timeout) and timeout > 0):
+        raise ConfigError(f"{timeout} is not a step timeout: give a finite number of seconds "
+                          f"> 0", key="step_timeout_s")
+    seed = options.seed if options.seed is not None else scenario.seed
+    if not 0 <= seed <= SEED_MAX:
+        raise ConfigError(f"{seed} is not a seed: give an integer 0 .. 2**63-1", key="seed")
+
+
+def _dut_stopped(exc: BaseException, t: float) -> tuple[str, dict[str, Any]]:
+    """The run's error line for a DUT that ended it, and the facts for the record."""
+    if isinstance(exc, DutStopped):
+        at = exc.at_s if exc.at_s is not None else t
+        line = f"the DUT {exc.what} at t = {at:.1f} s"
+        detail = exc.detail.strip()
+        if detail:
+            line += f"; {detail[-600:]}"
+        return line, {"t_s": round(at, 3), "what": exc.what}
+    if isinstance(exc, StepTimeoutError):
+        return (f"the DUT stopped answering at t = {t:.1f} s ({exc})",
+                {"t_s": round(t, 3), "what": "stopped answering"})
+    return f"{type(exc).__name__}: {exc}", {"t_s": round(t, 3), "what": str(exc)}
+
+
 def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
                  options: RunOptions) -> RunResult:
     """Run ``scenario`` on a fresh ``rig_cls`` against ``dut``; write everything to
-    ``options.out_dir`` and return the record."""
+    ``options.out_dir`` and return the record.
+
+    A DUT that dies, exits, raises or stops answering (at start-up or during the run) makes a
+    failed run, not an exception: the record's ``error`` says what and when ("the DUT exited
+    with SIGSEGV at t = 12.3 s") and ``dut_stopped`` holds the time. A DUT that cannot be
+    started at all (:class:`~hil.dut.base.DutSetupError`) and bad options raise."""
+    check_run(scenario, options)
     seed = options.seed if options.seed is not None else scenario.seed
     run_id = uuid.uuid4().hex[:12]
     notes: list[dict[str, Any]] = []
@@ -378,12 +457,23 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
             rec.meta["physics_engines"] = engines
         dut_env = rig.dut_environment()
         rec.meta["dut_environment"] = dut_env
+        start_failure: DutStopped | None = None
         if spec == "inline":
             assert isinstance(dut, InProcessDut)
-            bus: can.BusABC = dut.attach_inline(dut_env)
+            try:
+                bus: can.BusABC = dut.attach_inline(dut_env)
+            except DutStopped as exc:
+                start_failure = exc
+                bus = InlineBus(lambda msg: [])    # nobody at the other end
         else:
             bus = local_bus() if local_bus is not None else open_bus(spec)
-            dut.start(spec, dut_env)
+            try:
+                dut.start(spec, dut_env)
+            except DutSetupError:
+                bus.shutdown()
+                raise
+            except DutStopped as exc:   # the DUT died or stayed silent while coming up
+                start_failure = exc
             if scenario.bus_load:
                 load = stack.enter_context(_start_bus_load(spec, scenario.bus_load,
                                                            rig_cls.bitrate_bps, rec))
@@ -394,16 +484,20 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
         loop.foreign_ids = foreign_ids
         loop.restart_dut = lambda: dut.restart(spec, dut_env)
         loop.check_dut = dut.check
+        if options.clock == "lockstep":
+            loop.barrier.alive = dut.check    # a crash ends the step at once, named
         try:
+            if start_failure is not None:
+                raise start_failure
             loop.run()
             dut.check()
         except (StepTimeoutError, DutError) as exc:
             # the run ended because of the DUT: the record says so and the caller gets
             # the record of a failed run, not a traceback
             rec.verdict = Verdict.ERROR
-            rec.error = f"{type(exc).__name__}: {exc}"
+            rec.error, rec.meta["dut_stopped"] = _dut_stopped(exc, loop.clock.time_s)
             notes.append({"t": round(loop.clock.time_s, 6), "kind": "run-ended",
-                          "detail": str(exc)})
+                          "detail": rec.error})
         finally:
             sim_s = loop.clock.time_s
             rec.meta["truth"] = rig.truth()

@@ -104,7 +104,7 @@ def test_silent_dut_fails_start_with_its_output(write_profile, tmp_path, softbus
     text = profile_text(name, "silent").replace("ready_timeout_s = 10.0", "ready_timeout_s = 1.0")
     dut = ProcessDut(load_profile(write_profile(name=name, text=text)), clock="lockstep",
                      log_dir=tmp_path / "silent")
-    with pytest.raises(DutError, match=r"boot-up frame 0x710 within 1 s"):
+    with pytest.raises(DutError, match=r"never came up: .* boot-up frame 0x710 within 1 s"):
         dut.start(softbus.spec())
     assert dut.proc is None           # stopped on the way out: nothing left behind
     assert "toy dut silent starting" in (tmp_path / "silent" / "dut.stdout.log").read_text()
@@ -183,7 +183,7 @@ def test_a_dut_that_dies_in_real_time_ends_the_run_there(write_profile, tmp_path
                           RunOptions(out_dir=out, bus="softbus", clock="realtime"))
     error = result.record["error"] or ""
     assert result.verdict == "error"
-    assert "exited during the run with exit status 3" in error
+    assert "the DUT exited with exit status 3 at t = 0." in error
     assert "simulated crash" in error
     assert result.sim_s < 2.0                 # simulated time reached, not a wall-clock limit
     arrays, _ = load_traces(out / "traces.npz")
