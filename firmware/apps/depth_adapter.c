@@ -270,14 +270,6 @@ size_t depth_step(depth_adapter_t *a, double now_s, hal_can_frame_t out[DEPTH_MA
         n++;
         a->mode_sent = true;
     }
-    struct servo_cylinder_pdo_rpdo2_t pdo;
-    memset(&pdo, 0, sizeof pdo);
-    pdo.controlword = cw;
-    pdo.target_velocity = info->target_velocity;
-    out[n] = frame_of(0x300u + a->node, false, SERVO_CYLINDER_PDO_RPDO2_LENGTH);
-    servo_cylinder_pdo_rpdo2_pack(out[n].data, &pdo, sizeof out[n].data);
-    n++;
-
     if (a->steps % STATUS_EVERY == 0) {
         bool drive_fault = a->have_statusword && (a->statusword & 0x0008u) != 0;
         struct sowing_depth_depth_controller_status_t st;
@@ -310,6 +302,15 @@ size_t depth_step(depth_adapter_t *a, double now_s, hal_can_frame_t out[DEPTH_MA
         out[n].data[0] = NMT_OPERATIONAL;
         n++;
     }
+    /* the command frame goes last: in lockstep it closes the step (the rig's SYNC barrier
+     * waits for it), so the status and heartbeat must be on the bus before it */
+    struct servo_cylinder_pdo_rpdo2_t pdo;
+    memset(&pdo, 0, sizeof pdo);
+    pdo.controlword = cw;
+    pdo.target_velocity = info->target_velocity;
+    out[n] = frame_of(0x300u + a->node, false, SERVO_CYLINDER_PDO_RPDO2_LENGTH);
+    servo_cylinder_pdo_rpdo2_pack(out[n].data, &pdo, sizeof out[n].data);
+    n++;
     a->steps++;
     return n;
 }

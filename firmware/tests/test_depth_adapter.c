@@ -107,7 +107,10 @@ static void test_nmt_start(void)
     const hal_can_frame_t *mode = find(n, 0x402);
     CHECK(mode != NULL && mode->len == 1 && mode->data[0] == 3);
     CHECK(find(n, 0x302) != NULL);
+    /* the command closes the step: status and heartbeat (step 0) come before it */
+    CHECK(find(n, 0x701) != NULL && out[n - 1].id == 0x302);
     n = depth_step(&a, 0.01, out);
+    CHECK(out[n - 1].id == 0x302);
     CHECK(find(n, 0x402) == NULL);
     CHECK(find(n, 0x302) != NULL);
     /* a drive that drops out of Operational gets its mode again */

@@ -243,10 +243,14 @@ class DepthController(Controller):
         self.drive.rpdo[2]["Target velocity"].raw = round(speed * 100.0)
         self.drive.rpdo[2].transmit()
         out = self.network.take()
+        command = out.pop()          # RPDO2, transmitted last above
         if self.steps % STATUS_EVERY == 0:
             out.append(self._status(valid and enabled, frozen))
             out.append(can.Message(arbitration_id=0x700 + CONTROLLER_NODE_ID,
                                    data=bytes([NMT_OPERATIONAL]), is_extended_id=False))
+        # the command frame goes last: in lockstep it closes the step (the rig's SYNC barrier
+        # waits for it), so the status and heartbeat must be on the bus before it
+        out.append(command)
         self.steps += 1
         return out
 
