@@ -195,12 +195,12 @@ def test_depth_controller_holds_the_roller_on_a_frozen_inclinometer() -> None:
         assert speed > 0.0 and fault in (None, 0), i
     frozen = shallow + 99 % 3
     steps = [_depth_step(ctl, codec, frozen) for _ in range(100)]   # the output freezes
-    # the last change came with the frame of step 99 (t = 0.99 s): the step at 1.49 s still
-    # controls (0.5 s unchanged is not "more than" 0.5 s), the one at 1.50 s holds
-    assert all(speed > 0.0 for speed, _ in steps[:50])
-    assert all(speed == 0.0 for speed, _ in steps[50:])
-    assert {fault for _, fault in steps[:50]} == {None, 0}
-    assert {fault for _, fault in steps[50:]} == {None, 1}
+    # the last change came with the frame of step 99 (t = 0.99 s): the step at 1.19 s still
+    # controls (0.2 s unchanged is not "more than" 0.2 s), the one at 1.20 s holds
+    assert all(speed > 0.0 for speed, _ in steps[:20])
+    assert all(speed == 0.0 for speed, _ in steps[20:])
+    assert {fault for _, fault in steps[:20]} == {None, 0}
+    assert {fault for _, fault in steps[20:]} == {None, 1}
     # a frame with a bad status is no sign of life, even with another voltage: still dead
     # when the good frames come back with the frozen voltage
     assert _depth_step(ctl, codec, frozen + 7, status=1)[0] == 0.0
