@@ -19,7 +19,10 @@
 
 It sends its CANopen boot-up frame on joining the bus, logs one start line and any error to
 stderr, and exits 0 on SIGTERM or SIGINT without sending anything more (1 on a bus or
-controller failure).
+controller failure). When its bus connection closes (the software bus or the rig that ran it
+died, e.g. killed with SIGKILL) it logs "bus failed: … closed the connection" and exits 1 at
+once: on a socketcand bus it uses agrihil's client, which reports the server's end of stream
+(python-can's ignores it and would leave an orphaned daemon polling a dead socket forever).
 """
 
 from __future__ import annotations
@@ -36,7 +39,7 @@ from types import FrameType
 
 import can
 
-from hil.bus import open_bus
+from hil.bus import open_bus, parse_spec
 from hil.dut import Controller
 from hil.errors import BusError, BusSpecError
 from reference_controllers.params import ParamError, ParamValue
@@ -65,6 +68,26 @@ def parse_params(items: list[str]) -> dict[str, ParamValue]:
             raise ParamError(f"--param wants key=value, got {item!r}")
         out[key.strip()] = value.strip()
     return out
+
+
+def bus_spec_for_daemon(spec: str) -> str:
+    """The spec the daemon opens: a ``socketcand`` spec without a ``client=`` option gets
+    ``client=agrihil``, whose receive raises when the server closes the connection.
+
+    Parameters
+    ----------
+    spec : str
+        The ``--bus`` spec as given.
+
+    Returns
+    -------
+    str
+        ``spec`` unchanged unless it is a socketcand spec that names no client.
+    """
+    parsed = parse_spec(spec)
+    if parsed.transport != "socketcand" or "client" in parsed.options:
+        return spec
+    return f"{spec.strip()},client=agrihil"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -171,7 +194,7 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGINT, stop)
     try:
         controller.configure(dict(os.environ))
-        bus = open_bus(args.bus)
+        bus = open_bus(bus_spec_for_daemon(args.bus))
     except BusSpecError as exc:
         parser.error(str(exc))
     except (BusError, OSError) as exc:

@@ -27,7 +27,11 @@ void depth_config_defaults(depth_config_t *cfg)
     fpid_defaults(&cfg->core);
     cfg->min_speed_mps = 0.1;
     cfg->speed_timeout_s = 1.0;
-    cfg->frozen_after_s = 0.5;
+    /* 20 reports of 10 ms with one X voltage: with the inclinometer's own noise (~1.7 mV,
+     * 20 ms low-pass) two reports repeat a whole-mV value with p ~ 0.27 at standstill, 20
+     * repeats (p ~ 2e-12) only a frozen output gives; each 10 ms the frozen depth is trusted
+     * moves the roller (issue #16: 0.5 s left the depth up to ~2.2 mm off) */
+    cfg->frozen_after_s = 0.2;
 }
 
 size_t depth_param_refs(depth_config_t *cfg, param_ref_t refs[DEPTH_PARAM_COUNT])
@@ -270,14 +274,6 @@ size_t depth_step(depth_adapter_t *a, double now_s, hal_can_frame_t out[DEPTH_MA
         n++;
         a->mode_sent = true;
     }
-    struct servo_cylinder_pdo_rpdo2_t pdo;
-    memset(&pdo, 0, sizeof pdo);
-    pdo.controlword = cw;
-    pdo.target_velocity = info->target_velocity;
-    out[n] = frame_of(0x300u + a->node, false, SERVO_CYLINDER_PDO_RPDO2_LENGTH);
-    servo_cylinder_pdo_rpdo2_pack(out[n].data, &pdo, sizeof out[n].data);
-    n++;
-
     if (a->steps % STATUS_EVERY == 0) {
         bool drive_fault = a->have_statusword && (a->statusword & 0x0008u) != 0;
         struct sowing_depth_depth_controller_status_t st;
@@ -310,6 +306,15 @@ size_t depth_step(depth_adapter_t *a, double now_s, hal_can_frame_t out[DEPTH_MA
         out[n].data[0] = NMT_OPERATIONAL;
         n++;
     }
+    /* the command frame goes last: in lockstep it closes the step (the rig's SYNC barrier
+     * waits for it), so the status and heartbeat must be on the bus before it */
+    struct servo_cylinder_pdo_rpdo2_t pdo;
+    memset(&pdo, 0, sizeof pdo);
+    pdo.controlword = cw;
+    pdo.target_velocity = info->target_velocity;
+    out[n] = frame_of(0x300u + a->node, false, SERVO_CYLINDER_PDO_RPDO2_LENGTH);
+    servo_cylinder_pdo_rpdo2_pack(out[n].data, &pdo, sizeof out[n].data);
+    n++;
     a->steps++;
     return n;
 }

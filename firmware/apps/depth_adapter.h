@@ -14,9 +14,9 @@
  * Depth: eq. 13 on the X voltage of frames with status ok, filtered d += 0.2 (depth - d) per
  * frame (the first frame sets d). The depth is invalid (the core resets and the roller holds:
  * target velocity 0; the status frame says SensorFault) while the latest frame's X status is
- * not ok, and while the X voltage has not changed for more than frozen_after_s (0.5 s; 0 or
- * less turns this check off): a live inclinometer on a moving machine never repeats one ADC
- * count for half a second, so a frozen output, or one that stopped sending, is a dead sensor,
+ * not ok, and while the X voltage has not changed for more than frozen_after_s (0.2 s; 0 or
+ * less turns this check off): a live inclinometer never repeats one ADC count for 20 reports
+ * (0.2 s), so a frozen output, or one that stopped sending, is a dead sensor,
  * not a steady depth. As in the Python build. */
 #ifndef AGRIHIL_DEPTH_ADAPTER_H
 #define AGRIHIL_DEPTH_ADAPTER_H

@@ -205,13 +205,6 @@ size_t fert_step(fert_adapter_t *a, double now_s, hal_can_frame_t out[FERT_MAX_O
                          valid == 0;
 
     size_t n = 0;
-    struct fertilizer_analog_output_command_t cmd = {0, 0};
-    /* round half to even (rint in the default rounding mode), as Python's round() */
-    cmd.ch1_output = (int16_t)rint(clamp(info->out.volts, 0.0, 10.0) * 1000.0);
-    out[n] = frame_of(FERTILIZER_ANALOG_OUTPUT_COMMAND_FRAME_ID, false,
-                      FERTILIZER_ANALOG_OUTPUT_COMMAND_LENGTH);
-    fertilizer_analog_output_command_pack(out[n].data, &cmd, sizeof out[n].data);
-    n++;
 
     if (a->steps % STATUS_EVERY == 0) {
         struct fertilizer_controller_status_t st;
@@ -236,6 +229,16 @@ size_t fert_step(fert_adapter_t *a, double now_s, hal_can_frame_t out[FERT_MAX_O
     out[n] = frame_of(FERTILIZER_CONTROLLER_HEARTBEAT_FRAME_ID, false,
                       FERTILIZER_CONTROLLER_HEARTBEAT_LENGTH);
     fertilizer_controller_heartbeat_pack(out[n].data, &hb, sizeof out[n].data);
+    n++;
+
+    /* the command frame goes last: in lockstep it closes the step (the rig's SYNC barrier
+     * waits for it), so the status and heartbeat must be on the bus before it */
+    struct fertilizer_analog_output_command_t cmd = {0, 0};
+    /* round half to even (rint in the default rounding mode), as Python's round() */
+    cmd.ch1_output = (int16_t)rint(clamp(info->out.volts, 0.0, 10.0) * 1000.0);
+    out[n] = frame_of(FERTILIZER_ANALOG_OUTPUT_COMMAND_FRAME_ID, false,
+                      FERTILIZER_ANALOG_OUTPUT_COMMAND_LENGTH);
+    fertilizer_analog_output_command_pack(out[n].data, &cmd, sizeof out[n].data);
     n++;
     a->steps++;
     return n;

@@ -107,7 +107,10 @@ static void test_nmt_start(void)
     const hal_can_frame_t *mode = find(n, 0x402);
     CHECK(mode != NULL && mode->len == 1 && mode->data[0] == 3);
     CHECK(find(n, 0x302) != NULL);
+    /* the command closes the step: status and heartbeat (step 0) come before it */
+    CHECK(find(n, 0x701) != NULL && out[n - 1].id == 0x302);
     n = depth_step(&a, 0.01, out);
+    CHECK(out[n - 1].id == 0x302);
     CHECK(find(n, 0x402) == NULL);
     CHECK(find(n, 0x302) != NULL);
     /* a drive that drops out of Operational gets its mode again */
@@ -322,34 +325,34 @@ static void run_steps(int first, int last, int x_mv, bool alternate, uint8_t x_s
 static void test_frozen_inclinometer(void)
 {
     make_ready(1.0); /* X = 3700 at 0 s */
-    CHECK_NEAR(a.cfg.frozen_after_s, 0.5, 0);
+    CHECK_NEAR(a.cfg.frozen_after_s, 0.2, 0);
     int controlled, faults, fault;
     /* a live sensor (X changes every frame) controls for 3 s, no SensorFault */
     run_steps(0, 299, 3700, true, 0, &controlled, &faults);
     CHECK_INT(controlled, 300);
     CHECK_INT(faults, 0);
-    /* X changes to 3710 at 3.00 s, then repeats: control up to 3.50 s (0.5 s, not more) */
-    run_steps(300, 350, 3710, false, 0, &controlled, &faults);
-    CHECK_INT(controlled, 51);
-    CHECK_INT(faults, 0); /* the status frame of 3.50 s included */
+    /* X changes to 3710 at 3.00 s, then repeats: control up to 3.20 s (0.2 s, not more) */
+    run_steps(300, 320, 3710, false, 0, &controlled, &faults);
+    CHECK_INT(controlled, 21);
+    CHECK_INT(faults, 0); /* the status frame of 3.20 s included */
     CHECK(!a.last.frozen);
-    /* 3.51 s: frozen; the roller holds and the status says SensorFault */
-    CHECK_INT(step_at(351, 3710, 0, &fault), 0);
+    /* 3.21 s: frozen; the roller holds and the status says SensorFault */
+    CHECK_INT(step_at(321, 3710, 0, &fault), 0);
     CHECK(a.last.frozen && !a.last.valid);
-    run_steps(352, 399, 3710, false, 0, &controlled, &faults);
+    run_steps(322, 399, 3710, false, 0, &controlled, &faults);
     CHECK_INT(controlled, 0);
-    CHECK_INT(faults, 4); /* 3.60, 3.70, 3.80, 3.90 s */
+    CHECK_INT(faults, 7); /* 3.30 ... 3.90 s */
     /* a changed X is a live sensor again */
     CHECK(step_at(400, 3711, 0, &fault) != 0);
     CHECK_INT(fault, 0);
     CHECK(a.last.valid && !a.last.frozen);
-    /* frames stop at 4.00 s: the held depth controls up to 4.50 s, then the roller holds */
-    run_steps(401, 450, -1, false, 0, &controlled, &faults);
-    CHECK_INT(controlled, 50);
+    /* frames stop at 4.00 s: the held depth controls up to 4.20 s, then the roller holds */
+    run_steps(401, 420, -1, false, 0, &controlled, &faults);
+    CHECK_INT(controlled, 20);
     CHECK_INT(faults, 0);
-    run_steps(451, 470, -1, false, 0, &controlled, &faults);
+    run_steps(421, 470, -1, false, 0, &controlled, &faults);
     CHECK_INT(controlled, 0);
-    CHECK_INT(faults, 2); /* 4.60, 4.70 s */
+    CHECK_INT(faults, 5); /* 4.30 ... 4.70 s */
     CHECK(a.last.frozen);
     /* a bad status meanwhile does not count as a change: still frozen */
     run_steps(471, 480, 3900, false, 1, &controlled, &faults);

@@ -83,21 +83,22 @@ static void test_idle_frames(void)
     start(PPID_LAW_PHYSICAL);
     hal_can_frame_t out[FERT_MAX_OUT];
     size_t n = fert_step(&a, 0.0, out);
-    CHECK_INT(n, 3); /* command, status (first step), heartbeat */
-    CHECK_INT(out[0].id, 0x220);
-    CHECK_INT(out[0].len, 4);
+    CHECK_INT(n, 3); /* status (first step), heartbeat, then the command: it closes a step */
+    CHECK_INT(out[0].id, 0x190);
+    CHECK_INT(out[1].id, 0x710);
+    CHECK_INT(out[1].len, 1);
+    CHECK_INT(out[1].data[0], 0x05);
+    CHECK_INT(out[2].id, 0x220);
+    CHECK_INT(out[2].len, 4);
     CHECK_INT(ch1_mv(out, n), 0);
-    CHECK_INT(out[1].id, 0x190);
-    CHECK_INT(out[2].id, 0x710);
-    CHECK_INT(out[2].len, 1);
-    CHECK_INT(out[2].data[0], 0x05);
     for (int k = 1; k < 10; k++) {
         CHECK_INT(fert_step(&a, 0.1 * k, out), 2); /* no status on steps 1-9 */
+        CHECK_INT(out[1].id, 0x220);               /* the command still last */
     }
     n = fert_step(&a, 1.0, out);
     CHECK_INT(n, 3);
     struct fertilizer_controller_status_t st;
-    fertilizer_controller_status_unpack(&st, out[1].data, out[1].len);
+    fertilizer_controller_status_unpack(&st, out[0].data, out[0].len);
     CHECK_INT(st.counter, 10); /* the step count, as the Python build */
     hal_can_frame_t boot = fert_bootup();
     CHECK(boot.id == 0x710 && boot.len == 1 && boot.data[0] == 0x00);
@@ -115,7 +116,7 @@ static void test_bench_feedforward(void)
     CHECK_NEAR(a.last.target_gps, 23.0, 1e-12);
     CHECK(a.last.sensor_fault); /* enabled, no valid row */
     struct fertilizer_controller_status_t st;
-    fertilizer_controller_status_unpack(&st, out[1].data, out[1].len);
+    fertilizer_controller_status_unpack(&st, out[0].data, out[0].len);
     CHECK_INT(st.target_flow, 2300);
     CHECK_INT(st.active_mode, 1);
     CHECK_INT(st.enabled, 1);

@@ -212,7 +212,9 @@ class FlowController(Controller):
             else self.closed_loop
         self.volts, self.segment = law.step(target, m.measured_gps, m.has_measurement,
                                             m.new_report)
-        out = [self.db.analog_output_command(ch1_mv=round(self.volts * 1000.0))]
+        # the command frame goes last: in lockstep it closes the step (the rig's SYNC barrier
+        # waits for it), so the status and heartbeat must be on the bus before it
+        out: list[can.Message] = []
         if self.steps % STATUS_EVERY == 0:
             closed = law is self.closed_loop
             out.append(self.db.controller_status(
@@ -223,6 +225,7 @@ class FlowController(Controller):
                 sensor_fault=closed and self.enabled and not m.has_measurement,
                 counter=self.steps))
         out.append(self.db.heartbeat("ControllerHeartbeat", NmtState.OPERATIONAL))
+        out.append(self.db.analog_output_command(ch1_mv=round(self.volts * 1000.0)))
         self.steps += 1
         return out
 

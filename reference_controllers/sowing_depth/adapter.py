@@ -15,9 +15,9 @@ Depth: the inclinometer's X voltage with status "ok", eq. 13 ``depth = -0.065·x
 filtered ``d += 0.2·(depth - d)`` per frame (the first frame sets d). The depth is invalid
 (the PID resets and the roller holds; the status frame says SensorFault) while the status is
 not "ok", and while the X voltage has not changed for more than ``frozen_after_s``: a live
-inclinometer on a moving machine never repeats one ADC count for half a second (its noise
-alone is 2-5 counts SD), so a frozen output or one that stopped sending is a dead sensor, not
-a steady depth. Enabled: the terminal
+inclinometer never repeats one ADC count for 0.2 s, 20 reports (its noise alone is ~1.7 counts
+SD at standstill, 2-5 on a moving machine), so a frozen output or one that stopped sending is a
+dead sensor, not a steady depth. Enabled: the terminal
 says on + automatic and a ground speed >= ``min_speed_mps`` is known (GBSD or GNSS, see
 :mod:`.ground_speed`).
 """
@@ -71,7 +71,12 @@ class DepthAdapterParams:
 
     min_speed_mps: float = 0.1
     speed_timeout_s: float = 1.0
-    frozen_after_s: float = 0.5
+    #: 20 reports of 10 ms with one X voltage. The LVT525H's own noise (0.02 deg, 20 ms
+    #: low-pass) is ~1.7 mV at 83 mV/deg, so two consecutive reports repeat a whole-mV value
+    #: with p ~ 0.27 at standstill: 20 repeats (p ~ 2e-12) only a frozen output gives. Every
+    #: 10 ms the frozen depth is trusted moves the roller (up to 50 mm/s): 0.5 s left the
+    #: depth up to ~2.2 mm off for the rest of a stuck fault (issue #16)
+    frozen_after_s: float = 0.2
 
 
 def resolve_params(params: Mapping[str, ParamValue] | None) -> tuple[FuzzyPidParams,
@@ -243,10 +248,14 @@ class DepthController(Controller):
         self.drive.rpdo[2]["Target velocity"].raw = round(speed * 100.0)
         self.drive.rpdo[2].transmit()
         out = self.network.take()
+        command = out.pop()          # RPDO2, transmitted last above
         if self.steps % STATUS_EVERY == 0:
             out.append(self._status(valid and enabled, frozen))
             out.append(can.Message(arbitration_id=0x700 + CONTROLLER_NODE_ID,
                                    data=bytes([NMT_OPERATIONAL]), is_extended_id=False))
+        # the command frame goes last: in lockstep it closes the step (the rig's SYNC barrier
+        # waits for it), so the status and heartbeat must be on the bus before it
+        out.append(command)
         self.steps += 1
         return out
 
