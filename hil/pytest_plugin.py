@@ -42,6 +42,7 @@ from typing import Any
 import pytest
 
 from hil.dut.factory import make_dut, profile_run_options
+from hil.dut.physical import RESTART_SKIP_REASON, PhysicalDutSetupError
 from hil.dut.profile import DutProfile, load_profile
 from hil.errors import ConfigError, HilError
 from hil.limits import MEASUREMENTS, known_measurement
@@ -159,6 +160,8 @@ class QualificationSession:
     runs: dict[tuple[Any, ...], _RunEntry] = field(default_factory=dict)
     by_item: dict[str, list[Measurement]] = field(default_factory=dict)
     invalid_bench: dict[str, str] = field(default_factory=dict)
+    #: a setup problem that ends the session (a physical ECU that is not on the bus)
+    setup_error: str = ""
 
     # --- runs ---------------------------------------------------------------------------------
     def run(self, nodeid: str, rig_cls: type[Rig], scenario: Scenario | str, *,
@@ -180,16 +183,23 @@ class QualificationSession:
         cached = self.runs.get(key)
         if cached is not None:
             return cached.result
+        if profile.dut.kind == "physical" and any(e.dut == "restart" for e in scenario.events):
+            pytest.skip(RESTART_SKIP_REASON.format(scenario=scenario.name))
         rel = f"runs/{_slug(nodeid)}{'-' + _slug(label) if label else ''}"
         out_dir = self.report_dir / rel
         dut, build = make_dut(profile, bus=bus, clock=clock, log_dir=out_dir)
-        result = run_scenario(rig_cls, scenario, dut, RunOptions(
-            out_dir=out_dir, clock=clock, bus=bus, seed=seed_used,
-            step_timeout_s=step_timeout_s,
-            # the rig is wired as the DUT under qualification says (a baseline run too)
-            **profile_run_options(profile, rig_from=self.profile),
-            extra_meta={"dut_identity": profile.identity(), "dut_build": build,
-                        "test": nodeid}))
+        try:
+            result = run_scenario(rig_cls, scenario, dut, RunOptions(
+                out_dir=out_dir, clock=clock, bus=bus, seed=seed_used,
+                step_timeout_s=step_timeout_s,
+                # the rig is wired as the DUT under qualification says (a baseline run too)
+                **profile_run_options(profile, rig_from=self.profile),
+                extra_meta={"dut_identity": profile.identity(), "dut_build": build,
+                            "test": nodeid}))
+        except PhysicalDutSetupError as exc:
+            # not a verdict on the ECU: the qualification stops as a setup error (exit 2)
+            self.setup_error = str(exc)
+            pytest.exit(f"setup error: {exc}", returncode=2)
         self.runs[key] = _RunEntry(result, rel, scenario.name)
         timing = result.record.get("timing") or {}
         if timing.get("mode") == "realtime" and not timing.get("valid", True):
@@ -288,6 +298,8 @@ class QualificationSession:
 
     # --- the record ----------------------------------------------------------------------------
     def _verdict(self, exitstatus: int | None = None) -> str:
+        if self.setup_error:
+            return "error"
         if self.invalid_bench:
             return "invalid-bench"
         if exitstatus in (pytest.ExitCode.INTERRUPTED, pytest.ExitCode.INTERNAL_ERROR,
@@ -331,6 +343,7 @@ class QualificationSession:
             "tests": self.tests,
             "runs": runs,
             "timing": worst,
+            **({"error": self.setup_error} if self.setup_error else {}),
         }
 
 

@@ -383,6 +383,9 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
             bus: can.BusABC = dut.attach_inline(dut_env)
         else:
             bus = local_bus() if local_bus is not None else open_bus(spec)
+            announce = getattr(dut, "announce", None)
+            if announce is not None:  # a DUT the rig does not start: say where to join it
+                announce(options.out_dir, spec, dut_env, rig_cls.bitrate_bps)
             dut.start(spec, dut_env)
             if scenario.bus_load:
                 load = stack.enter_context(_start_bus_load(spec, scenario.bus_load,

@@ -7,9 +7,14 @@ default test run) and are skipped, with the reason, anywhere else.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import re
 import subprocess
 import sys
+import tempfile
+import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import can
@@ -65,3 +70,69 @@ def firmware_build() -> Path:
 
     profile = load_profile(ROOT / "dut_profiles" / "fertilizer-piecewise-pid-firmware.toml")
     return Path(str(ensure_built(profile)["build_dir"]))
+
+
+@contextlib.contextmanager
+def bus_server() -> Iterator[str]:
+    """``hil bus serve --port 0`` in a process of its own; yields the spec to join."""
+    with tempfile.TemporaryFile("w+") as out:
+        proc = subprocess.Popen([sys.executable, "-m", "hil", "bus", "serve", "--port", "0"],
+                                cwd=ROOT, stdout=out, stderr=subprocess.DEVNULL, text=True)
+        try:
+            deadline = time.monotonic() + 30
+            match = None
+            while match is None and time.monotonic() < deadline and proc.poll() is None:
+                time.sleep(0.05)
+                out.seek(0)
+                match = re.search(r"spec (\S+)", out.read())
+            assert match, f"hil bus serve did not say where it listens (exit {proc.poll()})"
+            yield match.group(1)
+        finally:
+            proc.terminate()
+            try:
+                proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+
+
+@contextlib.contextmanager
+def ecu_player(daemon_profile: str, bus: str) -> Iterator[subprocess.Popen[str]]:
+    """Play a physical ECU: the reference daemon of ``daemon_profile`` in real time on ``bus``,
+    started here and not by the rig (with the profile's parameters and real-time period)."""
+    from hil.dut.profile import load_profile
+
+    profile = load_profile(ROOT / "dut_profiles" / f"{daemon_profile}.toml")
+    command = list(profile.launch.command)
+    controller = command[command.index("--controller") + 1]
+    params = [arg for key, value in profile.parameters.items()
+              for arg in ("--param", f"{key}={value}")]
+    proc = subprocess.Popen([sys.executable, "-m", "reference_controllers.daemon",
+                             "--controller", controller, "--bus", bus,
+                             *profile.launch.realtime_args, *params],
+                            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        yield proc
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
+def physical_profile(rig: str, tmp_path: Path, ready_timeout_s: float | None = None) -> Path:
+    """The shipped physical-ECU profile of ``rig`` (optionally with a shorter heartbeat wait,
+    as a copy under ``tmp_path`` with the same file name)."""
+    name = "fertilizer-physical-ecu" if rig == "fertilizer" else "sowing-depth-physical-ecu"
+    shipped = ROOT / "dut_profiles" / "physical" / f"{name}.toml"
+    if ready_timeout_s is None:
+        return shipped
+    text = re.sub(r"ready_timeout_s = [0-9.]+", f"ready_timeout_s = {ready_timeout_s}",
+                  shipped.read_text())
+    copy = tmp_path / "profiles" / f"{name}.toml"
+    copy.parent.mkdir(parents=True, exist_ok=True)
+    copy.write_text(text)
+    return copy
