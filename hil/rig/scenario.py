@@ -23,6 +23,7 @@ against what the rig declares, so a typo is an error naming the file and the key
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -30,6 +31,8 @@ from hil.config import load_toml
 from hil.errors import ConfigError
 
 DUT_ACTIONS = ("restart",)
+#: the longest scenario accepted (a day of simulated time): beyond it is a typo, not a run
+MAX_DURATION_S = 86_400.0
 
 
 @dataclass(frozen=True)
@@ -50,8 +53,15 @@ class Event:
         if self.dut is not None and self.dut not in DUT_ACTIONS:
             raise ConfigError(f"unknown DUT action {self.dut!r} (known: "
                               f"{', '.join(DUT_ACTIONS)})", key="events.dut")
-        if self.at_s < 0:
-            raise ConfigError(f"event time must be >= 0, got {self.at_s}", key="events.at_s")
+        if not 0 <= self.at_s < math.inf:
+            raise ConfigError(f"event time must be a finite number >= 0, got {self.at_s}",
+                              key="events.at_s")
+        if self.target is not None and self.target < 0:
+            raise ConfigError(f"target must be >= 0, got {self.target}", key="events.target")
+        for name, value in (self.set or {}).items():
+            if not math.isfinite(value):
+                raise ConfigError(f"{name} must be a finite number, got {value}",
+                                  key=f"events.set.{name}")
 
 
 @dataclass(frozen=True)
@@ -70,9 +80,24 @@ class Scenario:
     bus_load: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.duration_s <= 0:
-            raise ConfigError(f"duration must be positive, got {self.duration_s}",
-                              key="duration_s")
+        if not 0 < self.duration_s <= MAX_DURATION_S:
+            raise ConfigError(f"duration must be positive and at most {MAX_DURATION_S:g} s, "
+                              f"got {self.duration_s}", key="duration_s")
+        if self.seed < 0:
+            raise ConfigError(f"seed must be >= 0, got {self.seed}", key="seed")
+        for name, value in self.initial.items():
+            if not math.isfinite(value):
+                raise ConfigError(f"{name} must be a finite number, got {value}",
+                                  key=f"initial.{name}")
+        for i, (t, v) in enumerate(self.speed_profile):
+            if not (math.isfinite(t) and math.isfinite(v)) or t < 0 or v < 0:
+                raise ConfigError(f"breakpoint ({t}, {v}): time and speed must be finite "
+                                  f"and >= 0", key=f"speed_profile[{i}]")
+        for i, event in enumerate(self.events):
+            if event.at_s > self.duration_s:
+                # it would never happen: the run ends first
+                raise ConfigError(f"event at {event.at_s:g} s is after the end of the run "
+                                  f"({self.duration_s:g} s)", key=f"events[{i}].at_s")
         if not 0.0 <= self.bus_load < 1.0:
             raise ConfigError(f"bus_load is a fraction of the bit rate in [0, 1), got "
                               f"{self.bus_load}", key="bus_load")
