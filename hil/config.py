@@ -80,6 +80,12 @@ def read_toml(path: Path, what: str = "file") -> dict[str, Any]:
         raise ConfigError(f"not valid TOML: {one_line(str(exc))}", path=str(path)) from exc
 
 
+def key_text(key: object) -> str:
+    """A key as it can appear in a one-line error: itself when printable, else its repr."""
+    text = str(key)
+    return text if text and text.isprintable() and text.strip() == text else repr(text)
+
+
 def one_line(text: str, limit: int = 300) -> str:
     """``text`` on one line of printable characters, at most ``limit`` long."""
     flat = " ".join(text.split())
@@ -112,7 +118,7 @@ def from_mapping(cls: type[T], data: Mapping[str, Any], *, path: str | None = No
     if unknown:
         raise ConfigError(
             f"unknown key (expected one of: {', '.join(sorted(fields))})",
-            path=path, key=_join(prefix, unknown[0]))
+            path=path, key=_join(prefix, key_text(unknown[0])))
     kwargs: dict[str, Any] = {}
     for name, field in fields.items():
         key = _join(prefix, name)
@@ -185,7 +191,8 @@ def _convert(tp: Any, value: Any, *, path: str | None, key: str) -> Any:
         if not isinstance(value, Mapping):
             raise ConfigError(f"expected a table, got {type(value).__name__}", path=path,
                               key=key)
-        return {str(k): _convert(vtype, v, path=path, key=f"{key}.{k}") for k, v in value.items()}
+        return {str(k): _convert(vtype, v, path=path, key=f"{key}.{key_text(k)}")
+                for k, v in value.items()}
     if dataclasses.is_dataclass(tp):
         return from_mapping(tp, value, path=path, prefix=key)
     if tp is bool:

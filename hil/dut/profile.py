@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from hil.config import check_positive, from_mapping
+from hil.config import check_positive, from_mapping, key_text
 from hil.errors import ConfigError
 from hil.limits import known_measurement, measurement_names
 
@@ -332,10 +332,11 @@ def _check(profile: DutProfile, path: str) -> None:
     for name, value in profile.parameters.items():
         if not re.match(r"^[a-z][a-z0-9_]*$", name):
             raise ConfigError(f"parameter names are lower_snake_case, got {name!r}",
-                              path=path, key=f"parameters.{name}")
+                              path=path, key=f"parameters.{key_text(name)}")
         del value
     for name in profile.limits:
         if not known_measurement(name, rig):
             raise ConfigError(
                 f"unknown measurement (the {rig} suites measure: "
-                f"{', '.join(measurement_names(rig))})", path=path, key=f"limits.{name}")
+                f"{', '.join(measurement_names(rig))})", path=path,
+                key=f"limits.{key_text(name)}")

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from hil.config import from_mapping, one_line, read_toml
+from hil.config import from_mapping, key_text, one_line, read_toml
 from hil.errors import ConfigError
 from hil.limits import MEASUREMENTS
 
@@ -96,7 +96,7 @@ def load_tolerances(path: str | Path) -> Tolerances:
     unknown = [k for k in data if k not in ("default", "measurements")]
     if unknown:
         raise ConfigError("unknown key (expected one of: default, measurements)", path=path,
-                          key=unknown[0])
+                          key=key_text(unknown[0]))
     default = (_band(data["default"], path=path, key="default") if "default" in data
                else DEFAULT_TOLERANCES.default)
     table = data.get("measurements", {})
@@ -106,7 +106,8 @@ def load_tolerances(path: str | Path) -> Tolerances:
     exact: dict[str, Band] = {}
     patterns: list[tuple[str, Band]] = []
     for name, value in table.items():
-        key = f'measurements."{name}"'
+        shown = key_text(name)
+        key = f'measurements."{name}"' if shown == name else f"measurements.{shown}"
         band = _band(value, path=path, key=key)
         if any(c in name for c in _GLOB_CHARS):
             if not any(fnmatch.fnmatchcase(known, name) for known in MEASUREMENTS):

@@ -27,7 +27,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from hil.config import load_toml
+from hil.config import key_text, load_toml
 from hil.errors import ConfigError
 
 DUT_ACTIONS = ("restart",)
@@ -124,13 +124,13 @@ class Scenario:
         for key in self.initial:
             if key not in inputs:
                 raise ConfigError(f"unknown input; the rig takes: {', '.join(sorted(inputs))}",
-                                  path=path, key=f"initial.{key}")
+                                  path=path, key=f"initial.{key_text(key)}")
         for i, event in enumerate(self.events):
             for key in event.set or {}:
                 if key not in inputs:
                     raise ConfigError(f"unknown input; the rig takes: "
                                       f"{', '.join(sorted(inputs))}", path=path,
-                                      key=f"events[{i}].set.{key}")
+                                      key=f"events[{i}].set.{key_text(key)}")
             for name in (event.fault, event.clear):
                 if name is not None and name not in faults:
                     raise ConfigError(f"unknown fault {name!r}; the rig has: "

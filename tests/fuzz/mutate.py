@@ -129,8 +129,8 @@ def textual(draw: st.DrawFn, text: str) -> tuple[str, bytes]:
         if not candidates:
             return "unchanged", raw
         i = draw(st.sampled_from(candidates))
-        return f"duplicate line {i + 1}", "".join(lines[:i + 1] + [lines[i]]
-                                                   + lines[i + 1:]).encode()
+        doubled = [*lines[:i + 1], lines[i], *lines[i + 1:]]
+        return f"duplicate line {i + 1}", "".join(doubled).encode()
     if kind == "utf-16":
         return "UTF-16", text.encode("utf-16")
     if kind == "latin-1":
