@@ -15,7 +15,8 @@ from pathlib import Path
 
 import pytest
 
-from tests.kernel.conftest import VCAN, bus_server, ecu_player, hil, physical_profile
+from hil.dut.profile import load_profile
+from tests.kernel.conftest import VCAN, bus_server, ecu_player, hil, physical_profile, read_bus_log
 
 FAST_SUBSET = {
     "fertilizer": ("fertilizer-piecewise-pid-daemon", "test_flow_step and 23 or test_dut_restart"),
@@ -67,35 +68,53 @@ def test_qualify_without_the_ecu_is_a_setup_error_not_a_fail(tmp_path: Path) -> 
     assert "no heartbeat 0x710" in record["error"]
 
 
-def qualify_physical(rig: str, bus: str, tmp_path: Path, ecu_bus: str | None = None) -> dict:
+def qualify_physical(rig: str, bus: str, tmp_path: Path, *,
+                     invalid_bench_ok: bool = False) -> dict:
     """Qualify the physical profile of ``rig`` on ``bus`` (the fast subset and the restart
-    scenario) with the reference daemon playing the ECU on ``ecu_bus`` (default: ``bus``)."""
+    scenario) with the reference daemon playing the ECU on the same bus.
+
+    The setup is checked whatever the bench timing: the ECU was found by its heartbeat on that
+    bus, every run wrote its endpoints and carried the ECU's frames, the restart scenario was
+    skipped for the stated reason. The verdict is checked only on a valid bench; an invalid one
+    (the machine's load, or an emulated kernel's real time) skips the test unless
+    ``invalid_bench_ok``.
+    """
     daemon, keyword = FAST_SUBSET[rig]
     out = tmp_path / "q"
-    with ecu_player(daemon, ecu_bus or bus) as ecu:
+    with ecu_player(daemon, bus) as ecu:
         done = hil("qualify", str(physical_profile(rig, tmp_path)), "--clock", "realtime",
                    "--bus", bus, "--suite", "fast,robustness", "-k", keyword,
                    "--out", str(out), timeout=900)
         assert ecu.poll() is None, "the ECU process died during the qualification"
     record = json.loads((out / "record.json").read_text())
-    if record["verdict"] == "invalid-bench":
-        pytest.skip("the rig's real-time timing was out of bounds (machine load): says "
-                    "nothing about the DUT")
-    assert done.returncode in (0, 1), done.stdout[-3000:] + done.stderr
-    assert record["verdict"] in ("pass", "fail")
+    assert record["verdict"] != "error", (record.get("error"), done.stderr[-2000:])
     assert record["dut"]["kind"] == "physical"
     tests = {t["nodeid"]: t for t in record["tests"]}
     restart = [t for n, t in tests.items() if "restart" in n]
     assert restart and all(t["outcome"] == "skipped" for t in restart), restart
     assert all("cannot power-cycle a physical ECU" in t["message"] for t in restart)
+    profile = load_profile(physical_profile(rig, tmp_path))
+    assert record["runs"]
+    for run in record["runs"]:
+        assert run["error"] in (None, ""), run
+        endpoints = json.loads((out / run["dir"] / "ecu-endpoints.json").read_text())
+        assert endpoints["bus"] == bus
+        ids = {m.arbitration_id for m in read_bus_log(out / run["dir"] / "bus.log")}
+        assert profile.wiring.heartbeat_id in ids and set(profile.wiring.command_ids) & ids
+    timing = record.get("timing") or {}
+    if record["verdict"] == "invalid-bench":
+        reasons = timing.get("invalid_reasons")
+        if invalid_bench_ok:
+            print(f"\ninvalid bench (real time under emulation): {reasons}")
+            return record
+        pytest.skip(f"the rig's real-time timing was out of bounds ({reasons}): says nothing "
+                    "about the DUT")
+    assert done.returncode in (0, 1), done.stdout[-3000:] + done.stderr
+    assert record["verdict"] in ("pass", "fail")
     judged = [t for n, t in tests.items() if "restart" not in n]
     assert judged and all(t["outcome"] in ("passed", "failed") for t in judged), judged
     measured = [m for m in record["measurements"] if m["value"] == m["value"]]  # not NaN
     assert measured, record["measurements"]
-    # every run waited for the ECU's heartbeat on the bus it was told, and said where
-    for run in record["runs"]:
-        endpoints = json.loads((out / run["dir"] / "ecu-endpoints.json").read_text())
-        assert endpoints["bus"] == bus
     return record
 
 
@@ -117,4 +136,6 @@ def test_qualify_a_physical_depth_ecu_over_hil_bus_serve(tmp_path: Path) -> None
 @pytest.mark.slow
 @pytest.mark.parametrize("rig", ["fertilizer", "sowing_depth"])
 def test_qualify_a_physical_ecu_on_vcan(rig: str, tmp_path: Path) -> None:
-    qualify_physical(rig, f"socketcan:{VCAN}", tmp_path)
+    # real time inside the emulated kernel is rarely a valid bench (one emulated CPU on a shared
+    # host): the ECU's setup over vcan is checked either way, the verdict when the bench is valid
+    qualify_physical(rig, f"socketcan:{VCAN}", tmp_path, invalid_bench_ok=True)
