@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import subprocess
+import sys
 import time
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -37,7 +38,7 @@ def _prebuild_firmware(cache: Path) -> None:
     code = ("from hil.dut.build import ensure_built; from hil.dut.profile import load_profile;"
             "import sys; [ensure_built(load_profile(p)) for p in sys.argv[1:]]")
     profiles = [str(p) for p in sorted((ROOT / "dut_profiles").glob("*-firmware.toml"))]
-    subprocess.run(["python", "-c", code, *profiles], cwd=ROOT, env=env, check=True,
+    subprocess.run([sys.executable, "-c", code, *profiles], cwd=ROOT, env=env, check=True,
                    capture_output=True, timeout=900)
 
 
