@@ -48,20 +48,19 @@ class Event:
     def __post_init__(self) -> None:
         actions = sum(x is not None for x in (self.set, self.fault, self.clear, self.dut))
         if actions != 1:
-            raise ConfigError("an event needs exactly one of set, fault, clear, dut",
-                              key="events")
+            raise ConfigError("an event needs exactly one of set, fault, clear, dut")
         if self.dut is not None and self.dut not in DUT_ACTIONS:
             raise ConfigError(f"unknown DUT action {self.dut!r} (known: "
-                              f"{', '.join(DUT_ACTIONS)})", key="events.dut")
+                              f"{', '.join(DUT_ACTIONS)})", key="dut")
         if not 0 <= self.at_s < math.inf:
             raise ConfigError(f"event time must be a finite number >= 0, got {self.at_s}",
-                              key="events.at_s")
+                              key="at_s")
         if self.target is not None and self.target < 0:
-            raise ConfigError(f"target must be >= 0, got {self.target}", key="events.target")
+            raise ConfigError(f"target must be >= 0, got {self.target}", key="target")
         for name, value in (self.set or {}).items():
             if not math.isfinite(value):
                 raise ConfigError(f"{name} must be a finite number, got {value}",
-                                  key=f"events.set.{name}")
+                                  key=f"set.{key_text(name)}")
 
 
 @dataclass(frozen=True)
@@ -88,16 +87,11 @@ class Scenario:
         for name, value in self.initial.items():
             if not math.isfinite(value):
                 raise ConfigError(f"{name} must be a finite number, got {value}",
-                                  key=f"initial.{name}")
+                                  key=f"initial.{key_text(name)}")
         for i, (t, v) in enumerate(self.speed_profile):
             if not (math.isfinite(t) and math.isfinite(v)) or t < 0 or v < 0:
                 raise ConfigError(f"breakpoint ({t}, {v}): time and speed must be finite "
                                   f"and >= 0", key=f"speed_profile[{i}]")
-        for i, event in enumerate(self.events):
-            if event.at_s > self.duration_s:
-                # it would never happen: the run ends first
-                raise ConfigError(f"event at {event.at_s:g} s is after the end of the run "
-                                  f"({self.duration_s:g} s)", key=f"events[{i}].at_s")
         if not 0.0 <= self.bus_load < 1.0:
             raise ConfigError(f"bus_load is a fraction of the bit rate in [0, 1), got "
                               f"{self.bus_load}", key="bus_load")
@@ -139,4 +133,13 @@ class Scenario:
 
 
 def load_scenario(path: str | Path) -> Scenario:
-    return load_toml(path, Scenario)
+    """Read and check a scenario file; an event after the end of the run (it would never
+    happen) is refused, naming it. (A scenario shortened in code, e.g. with
+    ``dataclasses.replace``, may drop its later events on purpose.)"""
+    scenario = load_toml(path, Scenario)
+    for i, event in enumerate(scenario.events):
+        if event.at_s > scenario.duration_s:
+            raise ConfigError(f"event at {event.at_s:g} s is after the end of the run "
+                              f"({scenario.duration_s:g} s): it would never happen",
+                              path=str(path), key=f"events[{i}].at_s")
+    return scenario
