@@ -26,6 +26,7 @@ hil.errors.ConfigError: [pole] unknown key (expected one of: ke_v_per_krpm, pole
 from __future__ import annotations
 
 import dataclasses
+import math
 import tomllib
 import types
 import typing
@@ -47,13 +48,7 @@ def load_toml(path: str | Path, cls: type[T], *, section: str | None = None,
     as well as the file.
     """
     path = Path(path)
-    try:
-        with path.open("rb") as fh:
-            data = tomllib.load(fh)
-    except FileNotFoundError as exc:
-        raise ConfigError("file not found", path=str(path)) from exc
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"not valid TOML: {exc}", path=str(path)) from exc
+    data = read_toml(path)
     if section is not None:
         if section not in data:
             raise ConfigError("missing section", path=str(path), key=section)
@@ -63,6 +58,39 @@ def load_toml(path: str | Path, cls: type[T], *, section: str | None = None,
         data = merge_tables(data, overrides)
         label = f"{source or 'overrides'} (over {path.name})"
     return from_mapping(cls, data, path=label, prefix=section or "")
+
+
+def read_toml(path: Path, what: str = "file") -> dict[str, Any]:
+    """Parse the TOML file ``path``: missing, unreadable, not UTF-8 or not TOML is a
+    :class:`ConfigError` naming the file (and where in it)."""
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError as exc:
+        raise ConfigError(f"{what} not found", path=str(path)) from exc
+    except OSError as exc:
+        raise ConfigError(f"cannot read {what}: {exc.strerror or exc}", path=str(path)) from exc
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"not UTF-8 text (TOML files are UTF-8): byte 0x{raw[exc.start]:02x} "
+                          f"at offset {exc.start}", path=str(path)) from exc
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"not valid TOML: {one_line(str(exc))}", path=str(path)) from exc
+
+
+def key_text(key: object) -> str:
+    """A key as it can appear in a one-line error: itself when printable, else its repr."""
+    text = str(key)
+    return text if text and text.isprintable() and text.strip() == text else repr(text)
+
+
+def one_line(text: str, limit: int = 300) -> str:
+    """``text`` on one line of printable characters, at most ``limit`` long."""
+    flat = " ".join(text.split())
+    flat = "".join(c if c.isprintable() else "?" for c in flat)
+    return flat if len(flat) <= limit else flat[:limit - 1] + "…"
 
 
 def merge_tables(base: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
@@ -90,7 +118,7 @@ def from_mapping(cls: type[T], data: Mapping[str, Any], *, path: str | None = No
     if unknown:
         raise ConfigError(
             f"unknown key (expected one of: {', '.join(sorted(fields))})",
-            path=path, key=_join(prefix, unknown[0]))
+            path=path, key=_join(prefix, key_text(unknown[0])))
     kwargs: dict[str, Any] = {}
     for name, field in fields.items():
         key = _join(prefix, name)
@@ -104,8 +132,15 @@ def from_mapping(cls: type[T], data: Mapping[str, Any], *, path: str | None = No
         return cls(**kwargs)
     except (TypeError, ValueError) as exc:
         if isinstance(exc, ConfigError):
-            raise
-        raise ConfigError(str(exc), path=path, key=prefix or None) from exc
+            if exc.path or not path:
+                raise
+            # a check in __post_init__ names the key but cannot know the file: add it
+            message = str(exc)
+            if exc.key and message.startswith(f"[{exc.key}] "):
+                message = message[len(exc.key) + 3:]
+            key = _join(prefix, exc.key) if exc.key else (prefix or None)
+            raise ConfigError(message, path=path, key=key) from exc
+        raise ConfigError(one_line(str(exc)), path=path, key=prefix or None) from exc
 
 
 def _join(prefix: str, name: str) -> str:
@@ -131,11 +166,12 @@ def _convert(tp: Any, value: Any, *, path: str | None, key: str) -> Any:
                 return _convert(option, value, path=path, key=key)
             except ConfigError as exc:
                 errors.append(str(exc))
-        raise ConfigError(f"{value!r} matches none of {tp}", path=path, key=key)
+        raise ConfigError(f"{_short(value)} matches none of {tp}", path=path, key=key)
     if origin is Literal:
         allowed = get_args(tp)
         if value not in allowed:
-            raise ConfigError(f"{value!r} is not one of {list(allowed)}", path=path, key=key)
+            raise ConfigError(f"{_short(value)} is not one of {list(allowed)}", path=path,
+                              key=key)
         return value
     if origin is tuple:
         args = get_args(tp)
@@ -155,26 +191,41 @@ def _convert(tp: Any, value: Any, *, path: str | None, key: str) -> Any:
         if not isinstance(value, Mapping):
             raise ConfigError(f"expected a table, got {type(value).__name__}", path=path,
                               key=key)
-        return {str(k): _convert(vtype, v, path=path, key=f"{key}.{k}") for k, v in value.items()}
+        return {str(k): _convert(vtype, v, path=path, key=f"{key}.{key_text(k)}")
+                for k, v in value.items()}
     if dataclasses.is_dataclass(tp):
         return from_mapping(tp, value, path=path, prefix=key)
     if tp is bool:
         if not isinstance(value, bool):
-            raise ConfigError(f"expected true/false, got {value!r}", path=path, key=key)
+            raise ConfigError(f"expected true/false, got {_short(value)}", path=path, key=key)
         return value
     if tp is int:
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(f"expected an integer, got {value!r}", path=path, key=key)
+            raise ConfigError(f"expected an integer, got {_short(value)}", path=path, key=key)
+        if not -(2**63) <= value < 2**63:
+            raise ConfigError(f"integer out of range (64-bit): {_short(value)}", path=path,
+                              key=key)
         return value
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, int | float):
-            raise ConfigError(f"expected a number, got {value!r}", path=path, key=key)
-        return float(value)
+            raise ConfigError(f"expected a number, got {_short(value)}", path=path, key=key)
+        try:
+            number = float(value)
+        except OverflowError as exc:
+            raise ConfigError(f"number out of range: {_short(value)}", path=path,
+                              key=key) from exc
+        if not math.isfinite(number):
+            raise ConfigError(f"expected a finite number, got {value!r}", path=path, key=key)
+        return number
     if tp is str:
         if not isinstance(value, str):
-            raise ConfigError(f"expected a string, got {value!r}", path=path, key=key)
+            raise ConfigError(f"expected a string, got {_short(value)}", path=path, key=key)
         return value
     raise TypeError(f"unsupported field type {tp!r} at {key}")
+
+
+def _short(value: Any) -> str:
+    return one_line(repr(value), 60)
 
 
 def check_positive(obj: object, *names: str) -> None:

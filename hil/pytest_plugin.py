@@ -43,6 +43,7 @@ import pytest
 
 from hil.dut.build import with_build_id
 from hil.dut.factory import check_bus_for_dut, make_dut, profile_run_options
+from hil.dut.physical import RESTART_SKIP_REASON, PhysicalDutSetupError
 from hil.dut.profile import DutProfile, load_profile
 from hil.errors import ConfigError, HilError
 from hil.limits import MEASUREMENTS, default_limit, known_measurement
@@ -182,6 +183,8 @@ class QualificationSession:
     #: tests failed because their DUT stopped (node id -> "the DUT stopped at t = … s")
     dut_failures: dict[str, str] = field(default_factory=dict)
     _config: pytest.Config | None = None
+    #: a setup problem that ends the session (a physical ECU that is not on the bus)
+    setup_error: str = ""
 
     # --- runs ---------------------------------------------------------------------------------
     def run(self, nodeid: str, rig_cls: type[Rig], scenario: Scenario | str, *,
@@ -204,16 +207,23 @@ class QualificationSession:
         if cached is not None:
             self.runs_of_test.setdefault(nodeid, []).append(cached.result)
             return cached.result
+        if profile.dut.kind == "physical" and any(e.dut == "restart" for e in scenario.events):
+            pytest.skip(RESTART_SKIP_REASON.format(scenario=scenario.name))
         rel = f"runs/{_slug(nodeid)}{'-' + _slug(label) if label else ''}"
         out_dir = self.report_dir / rel
         dut, build = make_dut(profile, bus=bus, clock=clock, log_dir=out_dir)
-        result = run_scenario(rig_cls, scenario, dut, RunOptions(
-            out_dir=out_dir, clock=clock, bus=bus, seed=seed_used,
-            step_timeout_s=step_timeout_s,
-            # the rig is wired as the DUT under qualification says (a baseline run too)
-            **profile_run_options(profile, rig_from=self.profile),
-            extra_meta={"dut_identity": profile.identity(), "dut_build": build,
-                        "test": nodeid}))
+        try:
+            result = run_scenario(rig_cls, scenario, dut, RunOptions(
+                out_dir=out_dir, clock=clock, bus=bus, seed=seed_used,
+                step_timeout_s=step_timeout_s,
+                # the rig is wired as the DUT under qualification says (a baseline run too)
+                **profile_run_options(profile, rig_from=self.profile),
+                extra_meta={"dut_identity": profile.identity(), "dut_build": build,
+                            "test": nodeid}))
+        except PhysicalDutSetupError as exc:
+            # not a verdict on the ECU: the qualification stops as a setup error (exit 2)
+            self.setup_error = str(exc)
+            pytest.exit(f"setup error: {exc}", returncode=2)
         self.runs[key] = _RunEntry(result, rel, scenario.name)
         if profile is self.profile:     # bus conformance of the DUT under qualification
             self._conformance(nodeid, rig_cls, result)
@@ -427,6 +437,8 @@ class QualificationSession:
         return set(self.planned) <= self.completed_tests()
 
     def _verdict(self, exitstatus: int | None = None) -> str:
+        if self.setup_error:
+            return "error"
         if not self.complete(exitstatus):
             stopped_on_failure = (not self.interrupted
                                   and exitstatus != pytest.ExitCode.INTERRUPTED
@@ -487,6 +499,7 @@ class QualificationSession:
                 "tests_completed": len(self.completed_tests() & set(self.planned)),
                 "tests_not_run": [n for n in self.planned if n not in self.completed_tests()],
             }),
+            **({"error": self.setup_error} if self.setup_error else {}),
         }
 
 

@@ -11,10 +11,37 @@
 
 #include <linux/can.h>
 #include <linux/can/raw.h>
+#include <linux/if_arp.h>
 #include <net/if.h>
+#include <sys/ioctl.h>
 #include <sys/select.h>
 #include <sys/socket.h>
 #include <unistd.h>
+
+/* receive buffer asked for: the kernel's default (~208 KiB) drops frames when the firmware is
+ * scheduled late (a loaded machine, an emulated kernel); capped by net.core.rmem_max */
+#define SOCKETCAN_RCVBUF (8 * 1024 * 1024)
+/* how long a send waits for room in a full transmit queue (ENOBUFS) before it is an error */
+#define SOCKETCAN_SEND_WAIT_US 1000000
+
+/* The interface must be a CAN interface and up: say which, and how to fix it. */
+static int check_interface(hal_can_t *bus, int fd, const char *iface)
+{
+    struct ifreq ifr;
+    memset(&ifr, 0, sizeof ifr);
+    snprintf(ifr.ifr_name, sizeof ifr.ifr_name, "%s", iface);
+    if (ioctl(fd, SIOCGIFHWADDR, &ifr) == 0 && ifr.ifr_hwaddr.sa_family != ARPHRD_CAN) {
+        snprintf(bus->error, sizeof bus->error, "socketcan:%s: not a CAN interface (link type "
+                 "%d)", iface, (int)ifr.ifr_hwaddr.sa_family);
+        return -1;
+    }
+    if (ioctl(fd, SIOCGIFFLAGS, &ifr) == 0 && (ifr.ifr_flags & IFF_UP) == 0) {
+        snprintf(bus->error, sizeof bus->error, "socketcan:%s: the interface is down; bring it "
+                 "up with 'ip link set up %s'", iface, iface);
+        return -1;
+    }
+    return 0;
+}
 
 int hal_socketcan_open(hal_can_t *bus, const bus_spec_t *spec)
 {
@@ -32,13 +59,27 @@ int hal_socketcan_open(hal_can_t *bus, const bus_spec_t *spec)
         }
         return -1;
     }
-    unsigned int index = if_nametoindex(spec->iface);
-    if (index == 0) {
-        snprintf(bus->error, sizeof bus->error, "socketcan:%s: no such CAN interface (%s)",
-                 spec->iface, strerror(errno));
+    if (strlen(spec->iface) >= IFNAMSIZ) {
+        snprintf(bus->error, sizeof bus->error, "socketcan:%s: interface names are at most %d "
+                 "characters", spec->iface, IFNAMSIZ - 1);
         close(fd);
         return -1;
     }
+    unsigned int index = if_nametoindex(spec->iface);
+    if (index == 0) {
+        snprintf(bus->error, sizeof bus->error, "socketcan:%s: no such CAN interface (%s); for a "
+                 "virtual one: 'ip link add dev %s type vcan && ip link set up %s'",
+                 spec->iface, strerror(errno), spec->iface, spec->iface);
+        close(fd);
+        return -1;
+    }
+    if (check_interface(bus, fd, spec->iface) != 0) {
+        close(fd);
+        return -1;
+    }
+    int rcvbuf = SOCKETCAN_RCVBUF;
+    /* a bigger buffer is best effort: the kernel caps it at net.core.rmem_max */
+    (void)setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof rcvbuf);
     struct sockaddr_can addr;
     memset(&addr, 0, sizeof addr);
     addr.can_family = AF_CAN;
@@ -61,12 +102,24 @@ int hal_socketcan_send(hal_can_t *bus, const hal_can_frame_t *frame)
                                 : frame->id & CAN_SFF_MASK;
     cf.can_dlc = frame->len;
     memcpy(cf.data, frame->data, frame->len);
+    int64_t waited_us = 0;
     for (;;) {
         ssize_t n = write(bus->fd, &cf, sizeof cf);
         if (n == (ssize_t)sizeof cf) {
             return 0;
         }
         if (n < 0 && errno == EINTR) {
+            continue;
+        }
+        if (n < 0 && (errno == ENOBUFS || errno == EAGAIN) &&
+            waited_us < SOCKETCAN_SEND_WAIT_US) {
+            /* the transmit queue is full: wait for room, as a CAN controller's driver does */
+            fd_set set;
+            FD_ZERO(&set);
+            FD_SET(bus->fd, &set);
+            struct timespec ts = {0, 1000000L};
+            (void)pselect(bus->fd + 1, NULL, &set, NULL, &ts, NULL);
+            waited_us += 1000;
             continue;
         }
         snprintf(bus->error, sizeof bus->error, "socketcan: write failed: %s",

@@ -27,14 +27,16 @@ build cache entry of this profile), ``{bus}`` (the bus spec), ``{params}`` (one
 
 from __future__ import annotations
 
+import functools
 import hashlib
+import math
 import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from hil.config import check_positive, from_mapping
+from hil.config import check_positive, from_mapping, key_text
 from hil.errors import ConfigError
 from hil.limits import known_measurement, measurement_names
 
@@ -201,11 +203,96 @@ def load_profile(path: str | Path) -> DutProfile:
     profile = from_mapping(DutProfile, data, path=str(path))
     _check(profile, str(path))
     _check_rig_config(profile.dut.rig, rig_config, str(path))
+    _check_control_period(profile, rig_config, str(path))
+    _check_database(profile, path)
     return DutProfile(dut=profile.dut, wiring=profile.wiring, timing=profile.timing,
                       launch=profile.launch, build=profile.build,
                       parameters=profile.parameters, limits=profile.limits,
                       rig_config=rig_config, path=path,
                       sha256=hashlib.sha256(raw).hexdigest())
+
+
+def database_path(database: str, profile_path: Path | None) -> Path:
+    """Where ``wiring.database`` points: absolute, or relative to the project root (as the
+    shipped profiles write it), else to the profile's own directory."""
+    p = Path(database)
+    if p.is_absolute():
+        return p
+    from hil.dut.build import PROJECT_ROOT
+
+    at_root = PROJECT_ROOT / p
+    if at_root.exists() or profile_path is None:
+        return at_root
+    beside = profile_path.parent / p
+    return beside if beside.exists() else at_root
+
+
+@functools.lru_cache(maxsize=32)
+def _database_ids(path: str, mtime_ns: int, size: int) -> frozenset[int]:
+    """The frame ids a CAN database declares (cached per file version); raises ValueError
+    (or cantools' own errors) when the file is not a database."""
+    import cantools
+
+    db = cantools.database.load_file(path, strict=False)
+    if not isinstance(db, cantools.database.can.Database):
+        raise ValueError("not a CAN database")
+    return frozenset(m.frame_id for m in db.messages)
+
+
+def _check_database(profile: DutProfile, path: Path) -> None:
+    """``wiring.database`` must be a readable CAN database that declares frames.
+
+    (Not every command id is checked against it: the depth rig's drive takes its controlword
+    in RPDO 0x202, a CANopen frame its DBC does not list today.)"""
+    database = profile.wiring.database
+    if not database:
+        return
+    where = {"path": str(path), "key": "wiring.database"}
+    target = database_path(database, path)
+    try:
+        stat = target.stat()
+    except OSError as exc:
+        raise ConfigError(f"CAN database {database!r} not found ({target}: "
+                          f"{exc.strerror or exc})", **where) from exc
+    if not target.is_file():
+        raise ConfigError(f"CAN database {database!r} is not a file ({target})", **where)
+    try:
+        ids = _database_ids(str(target), stat.st_mtime_ns, stat.st_size)
+    except Exception as exc:  # cantools raises many kinds (ParseError, KeyError, …)
+        text = "".join(c if c.isprintable() else "?" for c in " ".join(str(exc).split()))
+        detail = text[:200] or type(exc).__name__
+        raise ConfigError(f"CAN database {database!r} cannot be read: {detail}",
+                          **where) from exc
+    if not ids:
+        raise ConfigError(f"CAN database {database!r} declares no frames", **where)
+
+
+def rig_control_period_ms(rig: str, overrides: dict[str, Any] | None = None,
+                          source: str = "") -> tuple[float, bool]:
+    """The rig's control period (its SYNC period) in ms with the profile's ``[rig]`` overrides,
+    and whether the rig's config sets it (``[rig] wiring.sync_period_ms``)."""
+    from hil.rig.registry import load_rig
+
+    rig_cls = load_rig(rig)
+    config = rig_cls.load_config(overrides or {}, source=source)
+    sync_ms = getattr(getattr(config, "wiring", None), "sync_period_ms", None)
+    if isinstance(sync_ms, int | float) and not isinstance(sync_ms, bool):
+        return float(sync_ms), True
+    return float(rig_cls.control_period_s) * 1000.0, False
+
+
+def _check_control_period(profile: DutProfile, overrides: dict[str, Any], path: str) -> None:
+    """``timing.control_period_ms`` is the period the DUT is stepped at: the rig's SYNC period.
+
+    A profile that says otherwise would be run at a period it does not claim, so it is refused.
+    """
+    rig_ms, configurable = rig_control_period_ms(profile.dut.rig, overrides, path)
+    if not math.isclose(profile.timing.control_period_ms, rig_ms, rel_tol=1e-9):
+        hint = " (or the rig's: [rig] wiring = { sync_period_ms = ... })" if configurable else ""
+        raise ConfigError(
+            f"control period {profile.timing.control_period_ms:g} ms disagrees with the "
+            f"{profile.dut.rig} rig's {rig_ms:g} ms (its SYNC period; the DUT is stepped once "
+            f"per SYNC): set {rig_ms:g}{hint}", path=path, key="timing.control_period_ms")
 
 
 def _check_rig_config(rig: str, overrides: dict[str, Any], path: str) -> None:
@@ -245,10 +332,11 @@ def _check(profile: DutProfile, path: str) -> None:
     for name, value in profile.parameters.items():
         if not re.match(r"^[a-z][a-z0-9_]*$", name):
             raise ConfigError(f"parameter names are lower_snake_case, got {name!r}",
-                              path=path, key=f"parameters.{name}")
+                              path=path, key=f"parameters.{key_text(name)}")
         del value
     for name in profile.limits:
         if not known_measurement(name, rig):
             raise ConfigError(
                 f"unknown measurement (the {rig} suites measure: "
-                f"{', '.join(measurement_names(rig))})", path=path, key=f"limits.{name}")
+                f"{', '.join(measurement_names(rig))})", path=path,
+                key=f"limits.{key_text(name)}")

@@ -23,12 +23,11 @@ from __future__ import annotations
 
 import fnmatch
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from hil.config import from_mapping
+from hil.config import from_mapping, key_text, one_line, read_toml
 from hil.errors import ConfigError
 from hil.limits import MEASUREMENTS
 
@@ -92,20 +91,12 @@ DEFAULT_TOLERANCES = Tolerances()
 def load_tolerances(path: str | Path) -> Tolerances:
     """Read a tolerance file; unknown keys, negative or empty bands and names that match no
     catalogued measurement are :class:`ConfigError` naming the file and the key."""
+    data = read_toml(Path(path), "tolerance file")
     path = str(path)
-    try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
-    except FileNotFoundError as exc:
-        raise ConfigError("tolerance file not found", path=path) from exc
-    except OSError as exc:
-        raise ConfigError(f"cannot read tolerance file: {exc}", path=path) from exc
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"not valid TOML: {exc}", path=path) from exc
     unknown = [k for k in data if k not in ("default", "measurements")]
     if unknown:
         raise ConfigError("unknown key (expected one of: default, measurements)", path=path,
-                          key=unknown[0])
+                          key=key_text(unknown[0]))
     default = (_band(data["default"], path=path, key="default") if "default" in data
                else DEFAULT_TOLERANCES.default)
     table = data.get("measurements", {})
@@ -115,7 +106,8 @@ def load_tolerances(path: str | Path) -> Tolerances:
     exact: dict[str, Band] = {}
     patterns: list[tuple[str, Band]] = []
     for name, value in table.items():
-        key = f'measurements."{name}"'
+        shown = key_text(name)
+        key = f'measurements."{name}"' if shown == name else f"measurements.{shown}"
         band = _band(value, path=path, key=key)
         if any(c in name for c in _GLOB_CHARS):
             if not any(fnmatch.fnmatchcase(known, name) for known in MEASUREMENTS):
@@ -132,8 +124,8 @@ def load_tolerances(path: str | Path) -> Tolerances:
 
 def _band(value: Any, *, path: str, key: str) -> Band:
     if not isinstance(value, dict):
-        raise ConfigError(f"expected a table like {{ abs = 0.1 }}, got {value!r}", path=path,
-                          key=key)
+        raise ConfigError(f"expected a table like {{ abs = 0.1 }}, got "
+                          f"{one_line(repr(value), 60)}", path=path, key=key)
     return from_mapping(Band, value, path=path, prefix=key)
 
 

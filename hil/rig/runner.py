@@ -467,6 +467,9 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
                 bus = InlineBus(lambda msg: [])    # nobody at the other end
         else:
             bus = local_bus() if local_bus is not None else open_bus(spec)
+            announce = getattr(dut, "announce", None)
+            if announce is not None:  # a DUT the rig does not start: say where to join it
+                announce(options.out_dir, spec, dut_env, rig_cls.bitrate_bps)
             try:
                 dut.start(spec, dut_env)
             except DutSetupError:

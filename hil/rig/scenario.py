@@ -23,13 +23,16 @@ against what the rig declares, so a typo is an error naming the file and the key
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from hil.config import load_toml
+from hil.config import key_text, load_toml
 from hil.errors import ConfigError
 
 DUT_ACTIONS = ("restart",)
+#: the longest scenario accepted (a day of simulated time): beyond it is a typo, not a run
+MAX_DURATION_S = 86_400.0
 
 
 @dataclass(frozen=True)
@@ -45,13 +48,19 @@ class Event:
     def __post_init__(self) -> None:
         actions = sum(x is not None for x in (self.set, self.fault, self.clear, self.dut))
         if actions != 1:
-            raise ConfigError("an event needs exactly one of set, fault, clear, dut",
-                              key="events")
+            raise ConfigError("an event needs exactly one of set, fault, clear, dut")
         if self.dut is not None and self.dut not in DUT_ACTIONS:
             raise ConfigError(f"unknown DUT action {self.dut!r} (known: "
-                              f"{', '.join(DUT_ACTIONS)})", key="events.dut")
-        if self.at_s < 0:
-            raise ConfigError(f"event time must be >= 0, got {self.at_s}", key="events.at_s")
+                              f"{', '.join(DUT_ACTIONS)})", key="dut")
+        if not 0 <= self.at_s < math.inf:
+            raise ConfigError(f"event time must be a finite number >= 0, got {self.at_s}",
+                              key="at_s")
+        if self.target is not None and self.target < 0:
+            raise ConfigError(f"target must be >= 0, got {self.target}", key="target")
+        for name, value in (self.set or {}).items():
+            if not math.isfinite(value):
+                raise ConfigError(f"{name} must be a finite number, got {value}",
+                                  key=f"set.{key_text(name)}")
 
 
 @dataclass(frozen=True)
@@ -70,9 +79,19 @@ class Scenario:
     bus_load: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.duration_s <= 0:
-            raise ConfigError(f"duration must be positive, got {self.duration_s}",
-                              key="duration_s")
+        if not 0 < self.duration_s <= MAX_DURATION_S:
+            raise ConfigError(f"duration must be positive and at most {MAX_DURATION_S:g} s, "
+                              f"got {self.duration_s}", key="duration_s")
+        if self.seed < 0:
+            raise ConfigError(f"seed must be >= 0, got {self.seed}", key="seed")
+        for name, value in self.initial.items():
+            if not math.isfinite(value):
+                raise ConfigError(f"{name} must be a finite number, got {value}",
+                                  key=f"initial.{key_text(name)}")
+        for i, (t, v) in enumerate(self.speed_profile):
+            if not (math.isfinite(t) and math.isfinite(v)) or t < 0 or v < 0:
+                raise ConfigError(f"breakpoint ({t}, {v}): time and speed must be finite "
+                                  f"and >= 0", key=f"speed_profile[{i}]")
         if not 0.0 <= self.bus_load < 1.0:
             raise ConfigError(f"bus_load is a fraction of the bit rate in [0, 1), got "
                               f"{self.bus_load}", key="bus_load")
@@ -99,13 +118,13 @@ class Scenario:
         for key in self.initial:
             if key not in inputs:
                 raise ConfigError(f"unknown input; the rig takes: {', '.join(sorted(inputs))}",
-                                  path=path, key=f"initial.{key}")
+                                  path=path, key=f"initial.{key_text(key)}")
         for i, event in enumerate(self.events):
             for key in event.set or {}:
                 if key not in inputs:
                     raise ConfigError(f"unknown input; the rig takes: "
                                       f"{', '.join(sorted(inputs))}", path=path,
-                                      key=f"events[{i}].set.{key}")
+                                      key=f"events[{i}].set.{key_text(key)}")
             for name in (event.fault, event.clear):
                 if name is not None and name not in faults:
                     raise ConfigError(f"unknown fault {name!r}; the rig has: "
@@ -114,4 +133,13 @@ class Scenario:
 
 
 def load_scenario(path: str | Path) -> Scenario:
-    return load_toml(path, Scenario)
+    """Read and check a scenario file; an event after the end of the run (it would never
+    happen) is refused, naming it. (A scenario shortened in code, e.g. with
+    ``dataclasses.replace``, may drop its later events on purpose.)"""
+    scenario = load_toml(path, Scenario)
+    for i, event in enumerate(scenario.events):
+        if event.at_s > scenario.duration_s:
+            raise ConfigError(f"event at {event.at_s:g} s is after the end of the run "
+                              f"({scenario.duration_s:g} s): it would never happen",
+                              path=str(path), key=f"events[{i}].at_s")
+    return scenario
