@@ -114,6 +114,23 @@ SKIPPED: dict[tuple[str, str], str] = {
      "hil qualify dut_profiles/fertilizer-piecewise-pid-firmware.toml --bus socketcan:vcan0 "
      "--out qual"):
         "needs kernel SocketCAN: tests/kernel runs this inside a user-mode Linux guest",
+    ("docs/guide/kernel-can.md", "bash scripts/setup.sh --system-packages"):
+        "installs system packages with apt (root); CI's setup does it when CI is set",
+    ("docs/guide/kernel-can.md", "bash scripts/kernel-can.sh"):
+        "boots the guest and runs the kernel_can tests: tests/kernel/test_guest.py does exactly "
+        "that in this test run",
+    ("docs/guide/kernel-can.md",
+     "bash scripts/kernel-can.sh -- hil run --dut dut_profiles/fertilizer-piecewise-pid-firmware"
+     ".toml --scenario bench-step-23 --bus socketcan:vcan0 --out /tmp/run"):
+        "a lockstep run over vcan in the guest: tests/kernel runs the same inside the guest",
+    ("docs/guide/kernel-can.md", "bash scripts/kernel-can.sh --check"):
+        "its exit status depends on the machine (0 where the guest starts, 3 where it cannot); "
+        "tests/kernel checks both paths",
+    ("docs/guide/physical-ecu.md",
+     "hil qualify dut_profiles/physical/fertilizer-physical-ecu.toml --clock realtime "
+     "--bus socketcan:can0 --out out/ecu"):
+        "needs a physical ECU on can0; tests/kernel/test_physical_ecu.py qualifies one played "
+        "by a process over the software bus and over vcan",
     ("docs/guide/gate-and-ci.md", "git diff ci/baselines/"):
         "reviews a change against the repository's history; the scratch checkout has none",
 }

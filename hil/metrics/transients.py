@@ -41,9 +41,9 @@ class TransientLag(DictMixin):
     """Result of :func:`transient_lag`."""
 
     lag_s: float
-    """Σ |mass error| / Σ |ΔQ| over the windows (s): a pure lag τ reads τ."""
+    """``Σ abs(mass error) / Σ abs(ΔQ)`` over the windows (s): a pure lag τ reads τ."""
     mass_error_pct: float
-    """Σ |mass error| / Σ target mass over the windows, %."""
+    """``Σ abs(mass error) / Σ target mass`` over the windows, %."""
     window_errors_g: tuple[float, ...]
     """Signed mass error (delivered - target) per window (the flows' unit times s: g)."""
     window_steps_gps: tuple[float, ...]

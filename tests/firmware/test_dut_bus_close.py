@@ -23,7 +23,7 @@ from hil.bus import open_bus
 from reference_controllers.daemon import bus_spec_for_daemon
 
 ROOT = Path(__file__).resolve().parents[2]
-SPEC = re.compile(rb"spec (socketcand:\S+)")
+SPEC = re.compile(rb"spec (socketcand:[^\s;]+)")
 
 
 @pytest.fixture

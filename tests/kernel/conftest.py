@@ -84,7 +84,7 @@ def bus_server() -> Iterator[str]:
             while match is None and time.monotonic() < deadline and proc.poll() is None:
                 time.sleep(0.05)
                 out.seek(0)
-                match = re.search(r"spec (\S+)", out.read())
+                match = re.search(r"spec ([^\s;]+)", out.read())
             assert match, f"hil bus serve did not say where it listens (exit {proc.poll()})"
             yield match.group(1)
         finally:

@@ -217,3 +217,43 @@ def test_judge_fails_what_a_defect_breaks() -> None:
     for key in (("bus.bootup.frames_before", None), ("bus.bootup.unexpected", None),
                 ("bus.undeclared_frames", None), ("bus.dlc_errors", "AnalogOutputCommand")):
         assert got[key].outcome.value == "fail", key
+
+
+# --- the measurements no bus-defect profile fails, failed on synthetic logs (issue 21's rule:
+# tests/test_suites_coverage.py lists these tests in SYNTHETIC) -----------------------------
+def test_judge_fails_a_dut_that_takes_too_much_of_the_bus() -> None:
+    """A command sent every 1 ms instead of every 100 ms: ~1,000 frames/s of a 250 kbit/s bus."""
+    frames = _good_power_up(0.0, 30)
+    frames += [(0.001 * k, 0x220, False, b"\1\2\3\4", True) for k in range(1, 3000)]
+    got = _judge(sorted(frames, key=lambda f: f[0]), clock="lockstep", restarts=0,
+                 duration_s=3.0)
+    share = got[("bus.share", None)]
+    assert share.value > 10.0 and share.outcome.value == "fail", (share.value, share.note)
+
+
+def test_judge_fails_a_heartbeat_gap_longer_than_the_consumer_time() -> None:
+    """Heartbeats every 100 ms, but none for 0.6 s in the middle: the analog module (consumer
+    time 300 ms) would fall back to 0 V."""
+    frames = [f for f in _good_power_up(0.0, 30)
+              if not (f[1] == 0x710 and 1.0 < f[0] < 1.6)]
+    got = _judge(frames, clock="lockstep", restarts=0, duration_s=3.0)
+    gaps = [m for (name, _), m in got.items() if name == "bus.heartbeat.max_interval"]
+    assert gaps, "no consumer of the DUT's heartbeat was judged"
+    assert all(m.value > 300 and m.outcome.value == "fail" for m in gaps), \
+        [(m.value, m.high, m.conditions) for m in gaps]
+
+
+def test_judge_fails_a_dut_that_misses_sync_answers_in_real_time() -> None:
+    """In real time a DUT that answers only every third SYNC: the commands of the other two
+    come a period late, beyond the control period's p99 limit."""
+    frames = [(0.0, 0x710, False, b"\x00", True)]
+    for k in range(60):
+        t = 0.1 * k
+        frames.append((t, 0x080, False, b"", False))
+        frames.append((t + 0.003, 0x710, False, b"\x05", True))
+        if k % 3 == 0:
+            frames.append((t + 0.003, 0x220, False, b"\1\2\3\4", True))
+    got = _judge(frames, clock="realtime", restarts=0, duration_s=6.0)
+    p99 = got[("bus.sync_latency.p99", None)]
+    assert p99.high is not None and p99.value > p99.high and p99.outcome.value == "fail", \
+        (p99.value, p99.high)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -118,7 +119,7 @@ def test_a_finished_qualification_replaces_the_previous_one(tmp_path: Path) -> N
     # for the other rig), and the summary
     assert "    flow.step.overshoot[target_gps=23] = " in proc.stdout
     assert "sowing_depth" not in proc.stdout and "SKIPPED" not in proc.stdout
-    assert "measurements: 4 = " in proc.stdout
+    assert re.search(r"measurements: \d+ = \d+ pass", proc.stdout), proc.stdout[-2000:]
     record = json.loads((out / "record.json").read_text())
     assert record["verdict"] == "pass" and "complete" not in record   # complete: no marks
     assert len(record["tests"]) == 1

@@ -101,7 +101,7 @@ def test_cli_passes_the_build_id_to_the_suites(tmp_path: Path, sources: Path) ->
     from hil.cli.qualify import pytest_args
 
     args = build_parser().parse_args(["qualify", str(FIRMWARE_PROFILE), "--build-id", "abc123"])
-    argv = pytest_args(args, tmp_path)
+    argv = pytest_args(args, tmp_path, "fertilizer")
     assert argv[argv.index("--hil-build-id") + 1] == "abc123"
     bad = subprocess.run([sys.executable, "-m", "hil", "qualify", str(FIRMWARE_PROFILE),
                           "--build-id", "", "--out", str(tmp_path / "q")],
