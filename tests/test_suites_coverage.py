@@ -5,8 +5,9 @@ A measurement is *covered* when at least one must-fail DUT profile names it in a
 
     # must-fail: flow.fault.speed_loss.overdelivery, flow.bench.accuracy
 
-(any ``dut_profiles/must_fail/**/*.toml``, the bus-defect ones in ``must_fail/bus/`` too; the discrimination tests run those profiles and check
-that each fails there: ``tests/test_discrimination.py``, ``tests/test_suites_depth_*.py``,
+(any ``dut_profiles/must_fail/**/*.toml``, the bus-defect ones in ``must_fail/bus/`` too;
+the discrimination tests run those profiles and check that each fails there:
+``tests/test_discrimination.py``, ``tests/test_suites_depth_*.py``,
 and the bus-conformance tests for ``*-bus-*`` profiles), or when :data:`SYNTHETIC` names the
 framework test whose synthetic DUT or data fails it. This test enumerates the catalogue, so
 a new measurement without either fails the build; so does a registration naming a
