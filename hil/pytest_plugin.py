@@ -244,7 +244,11 @@ class QualificationSession:
                                 physics_period_s=rig_cls.physics_period_s,
                                 conditions={"run": run})
         write_detail(found, result.out_dir)
+        stopped = _stopped_reason(result) if result.record.get("error") else ""
         for m in found.measurements:
+            if stopped:   # what a dead DUT left on the bus judges nothing: failed, with why
+                m = dataclasses.replace(m, value=math.nan,
+                                        note=stopped + (f"; {m.note}" if m.note else ""))
             self._keep(nodeid, m, result)
 
     def run_dir_of(self, result: RunResult) -> str:

@@ -224,10 +224,23 @@ def judge(log: FrameLog, contract: BusContract, profile: DutProfile, *, clock: s
     bootups = int(np.count_nonzero(is_bootup))
     expected = 1 + restarts
     first_before = ", ".join(sorted({_label(k) for k in keys[segment == 0][:50].tolist()}))
-    add("bus.bootup.frames_before", before, dict(node),
-        f"before the first boot-up: {first_before}" if before else "", high=0)
-    add("bus.bootup.unexpected", abs(bootups - expected), {**node, "power_ups": expected},
-        f"{bootups} boot-up messages for {expected} power-up(s)", high=0)
+    if profile.dut.kind == "physical":
+        # the rig does not power a physical ECU: it may have booted before the rig listened
+        # (frames "before" its boot-up are then just its traffic), or once while the rig
+        # waited for it; a second boot-up is still a restart nobody asked for
+        add("bus.bootup.frames_before", before, dict(node),
+            "not judged: the rig does not power up a physical ECU, so its power-up may "
+            "precede the run" + (f" (frames before a boot-up: {first_before})" if before
+                                 else ""), high=None)
+        add("bus.bootup.unexpected", max(0, bootups - 1), {**node, "power_ups": 0},
+            f"{bootups} boot-up messages; at most one (the ECU powered while the rig "
+            "waited) is expected", high=0)
+        expected = min(bootups, 1)
+    else:
+        add("bus.bootup.frames_before", before, dict(node),
+            f"before the first boot-up: {first_before}" if before else "", high=0)
+        add("bus.bootup.unexpected", abs(bootups - expected), {**node, "power_ups": expected},
+            f"{bootups} boot-up messages for {expected} power-up(s)", high=0)
     # share of the bus
     duration = duration_s if duration_s > 0 else float(log.time_s.max(initial=0.0))
     bits = checks.total_bits(dut)

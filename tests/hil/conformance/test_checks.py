@@ -257,3 +257,27 @@ def test_judge_fails_a_dut_that_misses_sync_answers_in_real_time() -> None:
     p99 = got[("bus.sync_latency.p99", None)]
     assert p99.high is not None and p99.value > p99.high and p99.outcome.value == "fail", \
         (p99.value, p99.high)
+
+
+def test_a_physical_ecu_is_not_blamed_for_a_power_up_the_rig_did_not_see() -> None:
+    """The rig does not power a physical ECU: joined after its boot-up, its traffic is not
+    'before boot-up'; a second boot-up during the run is still an unexpected restart."""
+    from hil.conformance.measure import judge
+    from hil.dut.profile import load_profile
+
+    profile = load_profile("dut_profiles/physical/fertilizer-physical-ecu.toml")
+    contract = build_contract(rig_bus("fertilizer"), node_id=0x10, heartbeat_period_ms=100,
+                              control_period_ms=100, command_ids=frozenset({0x220}))
+    already_up = [f for f in _good_power_up(0.0, 30) if f[3] != b"\x00"]   # no boot-up seen
+
+    def judged(frames):
+        found = judge(_synthetic(sorted(frames, key=lambda f: f[0])), contract, profile,
+                      physics_period_s=0.001, clock="realtime", restarts=0, duration_s=3.0)
+        return {m.name: m for m in found.measurements if m.name.startswith("bus.bootup")}
+
+    got = judged(already_up)
+    assert got["bus.bootup.frames_before"].high is None
+    assert got["bus.bootup.unexpected"].outcome.value == "pass"
+    twice = judged([*already_up, (1.0, 0x710, False, b"\x00", True),
+                    (2.0, 0x710, False, b"\x00", True)])
+    assert twice["bus.bootup.unexpected"].outcome.value == "fail"
