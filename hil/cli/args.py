@@ -116,3 +116,35 @@ def check_log_path(path: str | Path, option: str = "--log") -> Path:
         raise ConfigError(f"{target}: python-can cannot write a {target.suffix or 'suffix-less'} "
                           f"log; use one of {', '.join(writers)}", key=option)
     return check_writable_file(target, option)
+
+
+#: the rig commands' own bus words, not python-can specs
+RIG_BUSES = ("softbus", "inline")
+
+
+def check_bus_spec(spec: str, option: str = "--bus") -> None:
+    """Refuse a bus spec that cannot name a bus before anything runs: a malformed spec, an
+    unknown transport (naming those available), a socketcand address without a valid port."""
+    from hil.bus import available_transports, parse_spec
+    from hil.errors import BusSpecError
+
+    if spec in RIG_BUSES:
+        return
+    try:
+        parsed = parse_spec(spec)
+    except BusSpecError as exc:
+        raise ConfigError(str(exc), key=option) from exc
+    known = available_transports()
+    if parsed.transport not in known:
+        raise ConfigError(f"{spec}: unknown bus transport {parsed.transport!r}; available: "
+                          f"{', '.join([*RIG_BUSES, *known])}", key=option)
+    if parsed.transport in ("socketcan", "socketcand") and not parsed.channel:
+        example = ("socketcan:vcan0" if parsed.transport == "socketcan"
+                   else "socketcand:HOST:PORT[/CH]")
+        raise ConfigError(f"{spec}: {parsed.transport} needs a channel ({example})", key=option)
+    if parsed.transport == "socketcand":
+        address = parsed.channel.split("/", 1)[0]
+        host, _, port = address.rpartition(":")
+        if not host or not port.isdigit() or not 1 <= int(port) <= 65535:
+            raise ConfigError(f"{spec}: socketcand needs HOST:PORT with a port 1..65535 "
+                              "(e.g. socketcand:127.0.0.1:29536/can0)", key=option)

@@ -6,11 +6,13 @@ import argparse
 import asyncio
 import contextlib
 import json
+import math
 import os
 import sys
 import threading
 
-from hil.cli.args import add_host_port
+from hil.cli.args import add_host_port, check_log_path
+from hil.errors import ConfigError
 from hil.softbus.control import CONTROL_TOKEN_ENV, control
 from hil.softbus.faults import FaultKind
 from hil.softbus.server import SoftwareBus
@@ -70,7 +72,21 @@ def _add_token(parser: argparse.ArgumentParser) -> None:
                              f"its port, else ${CONTROL_TOKEN_ENV})")
 
 
+def _check_serve_options(args: argparse.Namespace) -> None:
+    """Every option of ``hil bus serve`` checked before the bus binds (exit 2, one line)."""
+    if args.log is not None:
+        check_log_path(args.log)
+    if args.bitrate is not None and not 10_000 <= args.bitrate <= 1_000_000:
+        raise ConfigError(f"--bitrate {args.bitrate}: a CAN bit rate is 10000 .. 1000000 "
+                          "bit/s (ISOBUS: 250000)")
+    if args.busy_poll_us is not None and not (math.isfinite(args.busy_poll_us)
+                                              and 0 <= args.busy_poll_us <= 1_000_000):
+        raise ConfigError(f"--busy-poll-us {args.busy_poll_us}: give 0 (off) .. 1000000 us",
+                          )
+
+
 def _serve(args: argparse.Namespace) -> int:
+    _check_serve_options(args)
     bus = SoftwareBus(args.host, args.port, bitrate=args.bitrate, log_path=args.log,
                       seed=args.seed, allow_remote=args.allow_remote,
                       busy_poll_us=args.busy_poll_us,

@@ -31,7 +31,13 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from hil.cli.args import add_bus_clock, check_bus_for_dut, check_seed, prepare_out_dir
+from hil.cli.args import (
+    add_bus_clock,
+    check_bus_for_dut,
+    check_bus_spec,
+    check_seed,
+    prepare_out_dir,
+)
 from hil.cli.suites import suite_location
 from hil.dut.build import ensure_built, with_build_id
 from hil.dut.profile import DutProfile, load_profile
@@ -181,6 +187,7 @@ def _prepare(args: argparse.Namespace) -> tuple[DutProfile, Path, Path, str]:
     profile = with_build_id(load_profile(args.profile), args.build_id)
     check_suites(args.suite)
     check_seed(args.seed)
+    check_bus_spec(args.bus)
     check_bus_for_dut(args.bus, profile.dut.kind,
                       inprocess_twin=bool(profile.launch.inprocess))
     out = prepare_out_dir(args.out)

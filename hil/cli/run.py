@@ -18,6 +18,7 @@ from typing import Any
 from hil.cli.args import (
     add_bus_clock,
     check_bus_for_dut,
+    check_bus_spec,
     check_positive_seconds,
     check_seed,
     prepare_out_dir,
@@ -73,6 +74,10 @@ def _run(args: argparse.Namespace) -> int:
     # options first: a bad one is exit 2 before anything is built or started
     check_seed(args.seed)
     check_positive_seconds(args.step_timeout, "--step-timeout")
+    check_bus_spec(args.bus)
+    if args.bus == "inline" and args.clock != "lockstep":
+        raise ConfigError("the inline bus calls the controller inside the lockstep loop: use "
+                          "--clock lockstep, or a bus (softbus) for real time", key="--bus")
     profile = load_profile(args.dut) if _is_profile(args.dut) else None
     if args.build_id is not None:
         if profile is None:
