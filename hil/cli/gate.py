@@ -41,7 +41,9 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
                     "measurement against its limits and, with --baseline, against a stored "
                     "baseline with tolerance bands. Exit 0 pass, 1 fail, 2 no verdict "
                     "(invalid bench, qualification error) or bad input.")
-    gate.add_argument("record", metavar="RECORD.json", help="the qualification record")
+    gate.add_argument("record", metavar="RECORD.json",
+                      help="the qualification record, or a campaign.json of 'hil campaign' "
+                           "(then --baseline is another campaign.json)")
     gate.add_argument("--baseline", metavar="BASELINE.json",
                       help="compare against this baseline (and write it with --update-baseline)")
     gate.add_argument("--tolerance", metavar="FILE.toml",
@@ -63,6 +65,12 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
 
 
 def _run(args: argparse.Namespace) -> int:
+    from hil.campaign.record import is_campaign
+
+    if is_campaign(args.record):  # a campaign record (issue 15): compared by distribution
+        from hil.gate.campaign_cli import run_campaign_gate
+
+        return run_campaign_gate(args)
     record = load_record(args.record)
     tolerances = load_tolerances(args.tolerance) if args.tolerance else DEFAULT_TOLERANCES
     if args.update_baseline and not args.baseline:

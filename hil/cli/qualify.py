@@ -45,6 +45,11 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
     qualify.add_argument("-k", dest="keyword", default=None,
                          help="only tests matching this pytest -k expression")
     qualify.add_argument("--quiet", action="store_true", help="one line per test file")
+    # --- campaign (issue 15): reproduce one campaign sample with its dispersed rig -----------
+    qualify.add_argument("--rig-override", metavar="KEY=VALUE", action="append", default=[],
+                         help="override a rig config parameter (dotted key, TOML value) on top "
+                              "of the profile's [rig]; repeatable. `hil campaign` prints these "
+                              "for each sample it reruns")
     qualify.set_defaults(func=_qualify)
 
 
@@ -60,6 +65,8 @@ def pytest_args(args: argparse.Namespace, out: Path) -> list[str]:
         argv += ["--hil-seed", str(args.seed)]
     if args.keyword:
         argv += ["-k", args.keyword]
+    for item in getattr(args, "rig_override", []):   # campaign (issue 15)
+        argv += ["--hil-rig-override", item]
     return argv
 
 
@@ -67,6 +74,10 @@ def _qualify(args: argparse.Namespace) -> int:
     import pytest
 
     profile = load_profile(args.profile)          # a bad profile never starts a run
+    if args.rig_override:                          # campaign (issue 15): checked up front
+        from hil.campaign.overrides import parse_overrides
+
+        parse_overrides(args.rig_override, rig=profile.dut.rig, base=profile.rig_config)
     out = Path(args.out)
     if out.exists() and (out / "record.json").exists():
         shutil.rmtree(out / "runs", ignore_errors=True)
