@@ -53,6 +53,7 @@ class CampaignPlan:
     #: worst samples rerun per measurement, and the most reruns in all
     worst: int = 1
     max_reruns: int = 10
+    isolation: str = "process"
     campaign_id: str = field(default_factory=lambda: uuid.uuid4().hex[:12])
 
     def task(self, index: int, *, record: str = "measurements", out_dir: str = ""
@@ -63,7 +64,8 @@ class CampaignPlan:
         return SampleTask(profile=str(Path(str(self.profile.path)).resolve()), index=index,
                           seed=seed, bus=self.bus, clock=self.clock, suites=self.suites,
                           overrides=overrides, record=record, out_dir=out_dir,
-                          timeout_s=self.timeout_s, keyword=self.keyword)
+                          timeout_s=self.timeout_s, keyword=self.keyword,
+                          isolation=self.isolation if record == "measurements" else "process")
 
 
 @contextmanager

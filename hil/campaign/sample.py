@@ -49,6 +49,10 @@ class SampleTask:
     out_dir: str = ""
     timeout_s: float = 600.0
     keyword: str | None = None
+    #: "process": a fresh pytest process per sample (default; a hung sample is killed at
+    #: ``timeout_s``); "inprocess": pytest.main in the worker itself (no interpreter start
+    #: and no collection imports per sample, but no hard timeout: see docs/guide/campaigns.md)
+    isolation: str = "process"
 
     def override_args(self) -> list[str]:
         return [format_override(k, v) for k, v in sorted(self.overrides.items())]
@@ -108,6 +112,10 @@ def run_sample(task: SampleTask) -> dict[str, Any]:
         "worker": f"{socket.gethostname()}:{os.getpid()}"}
     try:
         log = out / "pytest.log"
+        if task.isolation == "inprocess":
+            code = _run_inprocess(task, out, log)
+            _read_record(sample, out / "record.json", code, log)
+            return sample
         with log.open("wb") as fh:
             proc = subprocess.Popen(pytest_argv(task, out), stdout=fh, stderr=subprocess.STDOUT,
                                     stdin=subprocess.DEVNULL, start_new_session=True,
@@ -150,6 +158,19 @@ def _read_record(sample: dict[str, Any], path: Path, code: int, log: Path) -> No
         errors = [r.get("error") for r in record.get("runs", []) if r.get("error")]
         sample["error"] = (f"qualification verdict {sample['verdict']}"
                            + (f": {errors[0]}" if errors else f" (pytest exit {code})"))
+
+
+def _run_inprocess(task: SampleTask, out: Path, log: Path) -> int:
+    """pytest.main in this process, its output to ``log``. Measured (bench_campaign.py and
+    docs/guide/campaigns.md): the same seed gives the same measurements as in a fresh process
+    and the worker's memory stays flat, so no state leaks into the results."""
+    import contextlib
+
+    import pytest
+
+    argv = [*pytest_argv(task, out)[3:], "-p", "no:faulthandler"]
+    with log.open("w") as fh, contextlib.redirect_stdout(fh), contextlib.redirect_stderr(fh):
+        return int(pytest.main(argv))
 
 
 def _kill_group(proc: subprocess.Popen[bytes]) -> None:

@@ -58,6 +58,10 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
     p.add_argument("--max-reruns", type=int, default=10,
                    help="most samples rerun with full recording, failing ones first "
                         "(default: 10; 0: none)")
+    p.add_argument("--isolation", choices=["process", "inprocess"], default="process",
+                   help="process (default): a fresh pytest process per sample, killed at "
+                        "--timeout-s; inprocess: pytest in the worker itself, faster, but a "
+                        "hung sample cannot be killed (reruns always use a process)")
     p.add_argument("--no-progress", action="store_true", help="no progress display")
     p.set_defaults(func=_campaign)
 
@@ -81,7 +85,7 @@ def _campaign(args: argparse.Namespace) -> int:
     plan = CampaignPlan(profile=profile, samples=args.samples, seed=args.seed, bus=args.bus,
                         clock=args.clock, suites=args.suite, dispersion=dispersion,
                         timeout_s=args.timeout_s, keyword=args.keyword, worst=args.worst,
-                        max_reruns=args.max_reruns)
+                        max_reruns=args.max_reruns, isolation=args.isolation)
     if args.scheduler is None and args.bus != "inline" and profile.build is not None:
         print(f"hil: building {profile.name} (cached after the first time) ...",
               file=sys.stderr)
@@ -92,7 +96,7 @@ def _campaign(args: argparse.Namespace) -> int:
     shutil.rmtree(out / "samples", ignore_errors=True)
     engine = ({"kind": "scheduler", "address": args.scheduler} if args.scheduler else
               {"kind": "local", "workers": args.workers or os.cpu_count() or 1})
-    engine["isolation"] = "a fresh pytest process per sample"
+    engine["isolation"] = args.isolation
     campaign = Campaign(plan, out, engine=engine)
     label = f"campaign of {profile.name}"
     where = (f"Dask scheduler {args.scheduler}" if args.scheduler
@@ -115,6 +119,7 @@ def _campaign(args: argparse.Namespace) -> int:
                             prefix=f"agrihil-{plan.campaign_id}-sample")
             finally:
                 progress.close()
+            campaign.write()
             _rerun(campaign, client, out)
         campaign.status = "complete"
     except KeyboardInterrupt:

@@ -61,6 +61,9 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
     gate.add_argument("--force", action="store_true",
                       help="write a baseline from a record that did not pass; compare with "
                            "or overwrite a baseline of another DUT")
+    gate.add_argument("--shift-fraction", type=float, default=0.25,  # campaign (issue 15)
+                      help="campaign records only: a mean shift is a regression beyond this "
+                           "fraction of the tolerance band (default: 0.25)")
     gate.set_defaults(func=_run)
 
 

@@ -26,7 +26,8 @@ def run_campaign_gate(args: argparse.Namespace) -> int:
     if args.baseline and (Path(args.baseline).exists() or not args.update_baseline):
         baseline = load_campaign(args.baseline)
     result = compare_campaigns(record, baseline, tolerances,
-                               allow_regressions=args.allow_regressions)
+                               allow_regressions=args.allow_regressions,
+                               shift_fraction=args.shift_fraction)
     text = render_campaign_text(result, record)
     if args.update_baseline:
         if result.verdict == "pass" or args.force:

@@ -111,3 +111,18 @@ def test_ctrl_c_leaves_a_valid_partial_campaign(tmp_path: Path) -> None:
     assert doc["status"] == "interrupted"
     assert 2 <= len(doc["samples"]) < 40
     assert doc["summary"]["samples_done"] == len(doc["samples"])
+
+
+@pytest.mark.slow
+def test_inprocess_isolation_gives_the_same_samples(tmp_path: Path) -> None:
+    # the evidence for --isolation inprocess: pytest sessions one after another in the same
+    # worker measure exactly what fresh processes measure, and the worker's memory stays flat
+    args = ("--samples", "4", "--seed", "3", "--max-reruns", "0")
+    _, process = _campaign(tmp_path / "p", *args)
+    _, inproc = _campaign(tmp_path / "i", *args, "--isolation", "inprocess")
+    assert inproc["engine"]["isolation"] == "inprocess"
+    for a, b in zip(process["samples"], inproc["samples"], strict=True):
+        assert a["verdict"] == b["verdict"] and same_measurements(a["measurements"],
+                                                                  b["measurements"])
+    rss = [s["rss_mb"] for s in inproc["samples"]]
+    assert max(rss) < 2 * min(rss)
