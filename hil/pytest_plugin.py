@@ -7,6 +7,10 @@ Registered through the ``pytest11`` entry point, so any ``pytest`` run has the o
     --hil-clock MODE       lockstep (default) or realtime
     --hil-report DIR       where runs, record.json and report.html go (default: hil-report)
     --hil-seed N           base seed of every scenario run (default: each scenario's own)
+    --hil-rig-override K=V rig config override (dotted key, TOML value), on top of the
+                           profile's [rig]; repeatable (a campaign sample's dispersed rig)
+    --hil-record MODE      full (default) or measurements: no bus logs and no report.html
+                           (a campaign's passing samples keep their measurements only)
 
 Fixtures (scopes in brackets): ``hil_profile`` [session] the validated profile;
 ``hil_rig`` [session] the rig class the profile is wired to; ``hil_run`` [function] runs a
@@ -74,6 +78,12 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     group.addoption("--hil-build-id", metavar="ID", default=None,
                     help="build id of the DUT (a CI job's commit), instead of the profile's "
                          "[dut] build_id")
+    group.addoption("--hil-rig-override", metavar="KEY=VALUE", action="append", default=[],
+                    help="override a rig config parameter (dotted key, TOML value) for every "
+                         "run, on top of the profile's [rig]; repeatable")
+    group.addoption("--hil-record", choices=["full", "measurements"], default="full",
+                    help="full (default): bus logs, traces and report.html; measurements: "
+                         "no bus logs, no report.html (campaign samples)")
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -98,12 +108,26 @@ def pytest_configure(config: pytest.Config) -> None:
             profile=profile, bus=config.getoption("--hil-bus"),
             clock=config.getoption("--hil-clock"),
             report_dir=Path(config.getoption("--hil-report")),
-            seed=config.getoption("--hil-seed"), suites=config.getoption("--hil-suite"))
+            seed=config.getoption("--hil-seed"), suites=config.getoption("--hil-suite"),
+            rig_overrides=_rig_overrides(profile, config.getoption("--hil-rig-override")),
+            record_mode=config.getoption("--hil-record"))
         config.pluginmanager.register(session, "agrihil-qualification")
         config.stash[_SESSION] = session
 
 
 _SESSION = pytest.StashKey["QualificationSession"]()
+
+
+def _rig_overrides(profile: DutProfile, items: list[str]) -> dict[str, Any]:
+    """``KEY=VALUE`` options as a nested override table, checked by the rig's loader."""
+    if not items:
+        return {}
+    from hil.campaign.overrides import parse_overrides
+
+    try:
+        return parse_overrides(items, rig=profile.dut.rig, base=profile.rig_config)
+    except ConfigError as exc:
+        raise pytest.UsageError(f"--hil-rig-override: {exc}") from exc
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
@@ -165,6 +189,10 @@ class QualificationSession:
     report_dir: Path
     seed: int | None
     suites: str = "all"
+    #: rig config overrides on top of the profile's [rig] (--hil-rig-override)
+    rig_overrides: dict[str, Any] = field(default_factory=dict)
+    #: "full" or "measurements" (no bus logs, no report.html)
+    record_mode: str = "full"
     run_id: str = field(default_factory=lambda: uuid.uuid4().hex[:12])
     started_at: str = field(
         default_factory=lambda: dt.datetime.now(dt.UTC).isoformat(timespec="seconds"))
@@ -212,12 +240,17 @@ class QualificationSession:
         rel = f"runs/{_slug(nodeid)}{'-' + _slug(label) if label else ''}"
         out_dir = self.report_dir / rel
         dut, build = make_dut(profile, bus=bus, clock=clock, log_dir=out_dir)
+        # the rig is wired as the DUT under qualification says (a baseline run too)
+        wiring = profile_run_options(profile, rig_from=self.profile)
+        if self.rig_overrides:
+            from hil.config import merge_tables
+
+            wiring["rig_config"] = merge_tables(wiring["rig_config"], self.rig_overrides)
         try:
             result = run_scenario(rig_cls, scenario, dut, RunOptions(
                 out_dir=out_dir, clock=clock, bus=bus, seed=seed_used,
-                step_timeout_s=step_timeout_s,
-                # the rig is wired as the DUT under qualification says (a baseline run too)
-                **profile_run_options(profile, rig_from=self.profile),
+                step_timeout_s=step_timeout_s, record_bus=self.record_mode == "full",
+                **wiring,
                 extra_meta={"dut_identity": profile.identity(), "dut_build": build,
                             "test": nodeid}))
         except PhysicalDutSetupError as exc:
@@ -225,7 +258,9 @@ class QualificationSession:
             self.setup_error = str(exc)
             pytest.exit(f"setup error: {exc}", returncode=2)
         self.runs[key] = _RunEntry(result, rel, scenario.name)
-        if profile is self.profile:     # bus conformance of the DUT under qualification
+        # bus conformance of the DUT under qualification, from the run's bus log (a
+        # measurements-only campaign sample keeps none: its full reruns carry conformance)
+        if profile is self.profile and self.record_mode == "full":
             self._conformance(nodeid, rig_cls, result)
         self.runs_of_test.setdefault(nodeid, []).append(result)
         timing = result.record.get("timing") or {}
@@ -405,6 +440,8 @@ class QualificationSession:
         self.report_dir.mkdir(parents=True, exist_ok=True)
         # atomic: a second Ctrl-C or a kill while writing leaves the old file or the new one
         write_json_atomic(self.report_dir / "record.json", record)
+        if self.record_mode == "measurements":
+            return
         from hil.report import write_html
 
         try:
@@ -504,6 +541,8 @@ class QualificationSession:
                 "tests_not_run": [n for n in self.planned if n not in self.completed_tests()],
             }),
             **({"error": self.setup_error} if self.setup_error else {}),
+            **({"rig_overrides": _dotted(self.rig_overrides)} if self.rig_overrides else {}),
+            **({"record_mode": self.record_mode} if self.record_mode != "full" else {}),
         }
 
 

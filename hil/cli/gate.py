@@ -42,7 +42,9 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
                     "measurement against its limits and, with --baseline, against a stored "
                     "baseline with tolerance bands. Exit 0 pass, 1 fail, 2 no verdict "
                     "(invalid bench, qualification error) or bad input.")
-    gate.add_argument("record", metavar="RECORD.json", help="the qualification record")
+    gate.add_argument("record", metavar="RECORD.json",
+                      help="the qualification record, or a campaign.json of 'hil campaign' "
+                           "(then --baseline is another campaign.json)")
     gate.add_argument("--baseline", metavar="BASELINE.json",
                       help="compare against this baseline (and write it with --update-baseline)")
     gate.add_argument("--tolerance", metavar="FILE.toml",
@@ -60,10 +62,19 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
     gate.add_argument("--force", action="store_true",
                       help="write a baseline from a record that did not pass; compare with "
                            "or overwrite a baseline of another DUT")
+    gate.add_argument("--shift-fraction", type=float, default=0.25,  # campaign (issue 15)
+                      help="campaign records only: a mean shift is a regression beyond this "
+                           "fraction of the tolerance band (default: 0.25)")
     gate.set_defaults(func=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
+    from hil.campaign.record import is_campaign
+
+    if is_campaign(args.record):  # a campaign record (issue 15): compared by distribution
+        from hil.gate.campaign_cli import run_campaign_gate
+
+        return run_campaign_gate(args)
     if args.update_baseline and args.baseline:
         check_writable_file(args.baseline, "--baseline", make_dirs=True)
     if args.summary:

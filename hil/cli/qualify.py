@@ -69,6 +69,11 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
     qualify.add_argument("--build-id", default=None,
                          help="the DUT's build id for the record (a CI job passes its commit); "
                               "default: the profile's [dut] build_id")
+    # --- campaign (issue 15): reproduce one campaign sample with its dispersed rig -----------
+    qualify.add_argument("--rig-override", metavar="KEY=VALUE", action="append", default=[],
+                         help="override a rig config parameter (dotted key, TOML value) on top "
+                              "of the profile's [rig]; repeatable. `hil campaign` prints these "
+                              "for each sample it reruns")
     qualify.set_defaults(func=_qualify)
 
 
@@ -100,6 +105,8 @@ def pytest_args(args: argparse.Namespace, out: Path, rig: str) -> list[str]:
         argv += ["-k", args.keyword]
     if getattr(args, "build_id", None) is not None:
         argv += ["--hil-build-id", args.build_id]
+    for item in getattr(args, "rig_override", []):   # campaign (issue 15)
+        argv += ["--hil-rig-override", item]
     return argv
 
 
@@ -185,6 +192,10 @@ def _prepare(args: argparse.Namespace) -> tuple[DutProfile, Path, Path, str]:
     # every option is checked before anything runs: a bad one is exit 2, never the DUT's fault
     # a bad profile (or build id) never starts a run
     profile = with_build_id(load_profile(args.profile), args.build_id)
+    if args.rig_override:                          # campaign (issue 15): checked up front
+        from hil.campaign.overrides import parse_overrides
+
+        parse_overrides(args.rig_override, rig=profile.dut.rig, base=profile.rig_config)
     check_suites(args.suite)
     check_seed(args.seed)
     check_bus_spec(args.bus)

@@ -18,6 +18,7 @@ profile never starts a run. Layout (``dut_profiles/<rig>-<controller>-<kind>.tom
     [rig]         overrides of the rig's packaged config for this DUT's installation, e.g.
                   ``flow_sensor = { mode = "sliding" }``: checked by the rig's own loader,
                   applied to every run of this DUT (and recorded in each run's record)
+    [campaign]    pass_probability, confidence: what a ``hil campaign`` must demonstrate
 
 In ``launch.command`` and ``build.command`` these placeholders are expanded: ``{python}``
 (this interpreter), ``{root}`` (the project root), ``{profile_dir}``, ``{build_dir}`` (the
@@ -152,6 +153,21 @@ class Limit:
 
 
 @dataclass(frozen=True)
+class CampaignRequirement:
+    """``[campaign]``: the pass probability a campaign must demonstrate, at what confidence
+    (its exact lower confidence bound must reach ``pass_probability``)."""
+
+    pass_probability: float
+    confidence: float = 0.95
+
+    def __post_init__(self) -> None:
+        for name in ("pass_probability", "confidence"):
+            if not 0 < getattr(self, name) < 1:
+                raise ValueError(f"{name} must lie strictly between 0 and 1, got "
+                                 f"{getattr(self, name)!r}")
+
+
+@dataclass(frozen=True)
 class DutProfile:
     dut: Identity
     wiring: Wiring
@@ -163,6 +179,8 @@ class DutProfile:
     #: ``[rig]``: overrides of the rig's packaged config for this DUT's wiring (e.g. which
     #: flow-sensor modules it is wired to), checked by the rig's own config loader
     rig_config: dict[str, Any] = field(default_factory=dict)
+    #: ``[campaign]``: the requirement of ``hil campaign`` (None: no sample may fail)
+    campaign: CampaignRequirement | None = None
     #: set by :func:`load_profile`
     path: Path | None = None
     sha256: str = ""
@@ -208,7 +226,7 @@ def load_profile(path: str | Path) -> DutProfile:
     return DutProfile(dut=profile.dut, wiring=profile.wiring, timing=profile.timing,
                       launch=profile.launch, build=profile.build,
                       parameters=profile.parameters, limits=profile.limits,
-                      rig_config=rig_config, path=path,
+                      rig_config=rig_config, campaign=profile.campaign, path=path,
                       sha256=hashlib.sha256(raw).hexdigest())
 
 

@@ -58,6 +58,9 @@ class RunOptions:
     #: floods the bus); a profile's timing.max_frames_per_period. None: no limit
     max_dut_frames_per_period: int | None = None
     extra_meta: dict[str, Any] = field(default_factory=dict)
+    #: False: no bus log files (a campaign's measurements-only sample; the traces the
+    #: metrics read are still written, to the sample's private directory)
+    record_bus: bool = True
 
 
 def bus_load_refusal(bus: str, clock: str) -> str | None:
@@ -403,7 +406,8 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
     notes: list[dict[str, Any]] = []
     wall0 = time.perf_counter()
     sim_s = 0.0
-    rec = Recorder(options.out_dir, run_id=run_id, csv=options.csv)
+    rec = Recorder(options.out_dir, run_id=run_id, csv=options.csv,
+                   **({} if options.record_bus else {"bus_log_formats": ()}))
     rec.seeds["scenario"] = seed
     rec.meta.update({"rig": rig_cls.name, "scenario": scenario.name, "clock": options.clock,
                      "duration_s": scenario.duration_s, "events": notes,

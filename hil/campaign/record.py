@@ -1,0 +1,79 @@
+"""``campaign.json``: the campaign record (schema ``agrihil.campaign/1``), written atomically.
+
+See ``docs/guide/campaigns.md`` for every field. The record is rewritten as samples arrive (and
+on Ctrl-C), so a campaign stopped at any point leaves a valid record of what it finished, with
+``status`` saying whether it is complete; ``samples.jsonl`` next to it gets each sample as it
+arrives.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+from hil.errors import ConfigError
+
+SCHEMA = "agrihil.campaign/1"
+RECORD_NAME = "campaign.json"
+SAMPLES_NAME = "samples.jsonl"
+
+
+def write_record(out: Path, doc: dict[str, Any]) -> Path:
+    """Write ``doc`` to ``out/campaign.json`` through a temporary file (never half a file)."""
+    path = out / RECORD_NAME
+    tmp = path.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(doc, indent=1, default=_default, allow_nan=False))
+    os.replace(tmp, path)
+    return path
+
+
+def _default(obj: Any) -> Any:
+    return str(obj)
+
+
+def clean(value: Any) -> Any:
+    """NaN and infinities as ``null`` (JSON has neither), recursively."""
+    if isinstance(value, float):
+        return value if value == value and abs(value) != float("inf") else None
+    if isinstance(value, dict):
+        return {k: clean(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [clean(v) for v in value]
+    return value
+
+
+def load_campaign(path: str | Path) -> dict[str, Any]:
+    """Read a campaign record (a file, or a directory holding ``campaign.json``).
+
+    Raises :class:`ConfigError` naming the file when it is missing, not JSON or of another
+    schema."""
+    path = Path(path)
+    if path.is_dir():
+        path = path / RECORD_NAME
+    try:
+        doc = json.loads(path.read_text())
+    except FileNotFoundError as exc:
+        raise ConfigError("campaign record not found", path=str(path)) from exc
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"not a readable JSON campaign record: {exc}", path=str(path)) from exc
+    if not isinstance(doc, dict) or doc.get("schema") != SCHEMA:
+        found = doc.get("schema") if isinstance(doc, dict) else None
+        raise ConfigError(f"not a campaign record (schema {found!r}, expected {SCHEMA})",
+                          path=str(path), key="schema")
+    doc["_path"] = str(path)
+    return doc
+
+
+def is_campaign(path: str | Path) -> bool:
+    """True when ``path`` holds a campaign record (peeks at the schema, never raises)."""
+    path = Path(path)
+    if path.is_dir():
+        path = path / RECORD_NAME
+    try:
+        with open(path, encoding="utf-8") as fh:
+            head = fh.read(4096)
+    except OSError:
+        return False
+    return f'"schema": "{SCHEMA}"' in head

@@ -1,0 +1,207 @@
+"""``hil campaign``: a Monte-Carlo campaign of the qualification suites (issue 15).
+
+    hil campaign dut_profiles/fertilizer-piecewise-pid-firmware.toml --samples 300
+    hil campaign PROFILE --samples 50 --bus inline --workers 2 --out camp
+    hil campaign PROFILE --samples 300 --scheduler tcp://10.0.0.5:8786
+
+Sample i runs the chosen suites at seed S+i with the rig parameters of the dispersion file
+drawn for that seed (default: the rig's shipped ``dispersion.toml``; ``--dispersion none``:
+nominal parameters, seeds only). Writes ``campaign.json``, ``samples.jsonl``, ``report.html``
+and, under ``samples/NNNN/``, full qualifications of the failing and worst samples. Exit 0 when
+the campaign passes, 1 when it fails or is inconclusive, 2 on setup errors or when no sample
+completed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import sys
+from pathlib import Path
+from typing import Any
+
+from hil.cli.args import add_bus_clock
+from hil.errors import ConfigError
+
+EXIT_BY_VERDICT = {"pass": 0, "fail": 1, "inconclusive": 1, "error": 2}
+
+
+def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = subparsers.add_parser(
+        "campaign", help="run the suites N times with dispersed rig parameters (Dask)",
+        description="Monte-Carlo qualification: N samples of the chosen suites, sample i at "
+                    "seed S+i with rig parameters drawn from a dispersion file, on a local "
+                    "Dask cluster or an existing one; pass rate with an exact confidence "
+                    "interval, per-measurement distributions, failing and worst samples "
+                    "rerun with full recording.")
+    p.add_argument("profile", help="DUT profile (TOML)")
+    p.add_argument("--samples", type=int, required=True, help="number of samples N")
+    add_bus_clock(p)
+    p.add_argument("--suite", default="fast", help="comma-separated suites (default: fast)")
+    p.add_argument("-k", dest="keyword", default=None, help="pytest -k expression")
+    p.add_argument("--dispersion", default=None, metavar="FILE",
+                   help="dispersion file (default: the rig's shipped dispersion.toml; "
+                        "'none': nominal rig parameters, seeds only)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None,
+                       help="local Dask worker processes (default: the cores)")
+    where.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                       help="run on an existing Dask cluster instead")
+    p.add_argument("--out", default="campaign", help="output directory (default: campaign)")
+    p.add_argument("--seed", type=int, default=0, help="seed S of sample 0 (default: 0)")
+    p.add_argument("--timeout-s", type=float, default=600.0,
+                   help="a sample running longer is killed and recorded as an error "
+                        "(default: 600)")
+    p.add_argument("--worst", type=int, default=1,
+                   help="worst samples per measurement rerun with full recording (default: 1)")
+    p.add_argument("--max-reruns", type=int, default=10,
+                   help="most samples rerun with full recording, failing ones first "
+                        "(default: 10; 0: none)")
+    p.add_argument("--isolation", choices=["process", "inprocess"], default="process",
+                   help="process (default): a fresh pytest process per sample, killed at "
+                        "--timeout-s; inprocess: pytest in the worker itself, faster, but a "
+                        "hung sample cannot be killed (reruns always use a process)")
+    p.add_argument("--no-progress", action="store_true", help="no progress display")
+    p.set_defaults(func=_campaign)
+
+
+def _campaign(args: argparse.Namespace) -> int:
+    from hil.campaign.dispersion import load_dispersion
+    from hil.campaign.engine import Campaign, CampaignPlan, dask_client, map_samples
+    from hil.campaign.progress import Progress
+    from hil.dut.build import ensure_built
+    from hil.dut.profile import load_profile
+
+    profile = load_profile(args.profile)
+    if args.samples < 1:
+        raise ConfigError(f"--samples must be >= 1, got {args.samples}", key="--samples")
+    if args.workers is not None and args.workers < 1:
+        raise ConfigError(f"--workers must be >= 1, got {args.workers}", key="--workers")
+    dispersion = None
+    if (args.dispersion or "").lower() != "none":
+        path = args.dispersion or default_dispersion(profile.dut.rig)
+        dispersion = load_dispersion(path, rig=profile.dut.rig)
+    plan = CampaignPlan(profile=profile, samples=args.samples, seed=args.seed, bus=args.bus,
+                        clock=args.clock, suites=args.suite, dispersion=dispersion,
+                        timeout_s=args.timeout_s, keyword=args.keyword, worst=args.worst,
+                        max_reruns=args.max_reruns, isolation=args.isolation)
+    if args.scheduler is None and args.bus != "inline" and profile.build is not None:
+        print(f"hil: building {profile.name} (cached after the first time) ...",
+              file=sys.stderr)
+        ensure_built(profile)
+    out = Path(args.out)
+    for stale in ("campaign.json", "samples.jsonl", "report.html"):
+        (out / stale).unlink(missing_ok=True)
+    shutil.rmtree(out / "samples", ignore_errors=True)
+    engine = ({"kind": "scheduler", "address": args.scheduler} if args.scheduler else
+              {"kind": "local", "workers": args.workers or os.cpu_count() or 1})
+    engine["isolation"] = args.isolation
+    campaign = Campaign(plan, out, engine=engine)
+    label = f"campaign of {profile.name}"
+    where = (f"Dask scheduler {args.scheduler}" if args.scheduler
+             else f"{engine['workers']} local workers")
+    print(f"hil: {label}: {args.samples} samples from seed {args.seed} ({args.bus}, "
+          f"{args.clock}, suites {args.suite}; dispersion "
+          f"{dispersion.path if dispersion else 'none'}; "
+          f"{where})",
+          file=sys.stderr)
+    try:
+        with dask_client(workers=args.workers, scheduler=args.scheduler) as client:
+            engine["workers"] = len(client.scheduler_info().get("workers", {}))
+            progress = Progress(args.samples, label, enabled=not args.no_progress)
+
+            def on_sample(sample: dict[str, Any]) -> None:
+                campaign.add(sample)
+                progress.update(sample)
+            try:
+                map_samples(client, [plan.task(i) for i in range(args.samples)], on_sample,
+                            prefix=f"agrihil-{plan.campaign_id}-sample")
+            finally:
+                progress.close()
+            campaign.write()
+            _rerun(campaign, client, out)
+        campaign.status = "complete"
+    except KeyboardInterrupt:
+        campaign.status = "interrupted"
+        raise
+    finally:
+        if campaign.status == "running":
+            campaign.status = "interrupted"
+        campaign.close()
+        campaign.write()
+        _write_report(out)
+    return _report(campaign.document(), out)
+
+
+def default_dispersion(rig: str) -> Path:
+    """The rig's shipped dispersion file."""
+    import plant_emulators
+
+    return Path(plant_emulators.__file__).resolve().parent / rig.replace("-", "_") \
+        / "dispersion.toml"
+
+
+def _rerun(campaign: Any, client: Any, out: Path) -> None:
+    from hil.campaign.engine import map_samples, rerun_selection, same_measurements
+
+    plan = campaign.plan
+    doc = campaign.document()
+    chosen = rerun_selection(doc, worst=plan.worst, max_reruns=plan.max_reruns)
+    if not chosen:
+        return
+    why = _why(doc)
+    print(f"hil: rerunning {len(chosen)} samples with full recording (failing first, then the "
+          f"worst per measurement): {', '.join(map(str, chosen))}", file=sys.stderr)
+    by_index = {s["index"]: s for s in campaign.samples}
+    tasks = {i: plan.task(i, record="full", out_dir=str((out / "samples" / f"{i:04d}").resolve()))
+             for i in chosen}
+
+    def on_rerun(sample: dict[str, Any]) -> None:
+        task = tasks[sample["index"]]
+        original = by_index.get(sample["index"], {})
+        campaign.reruns.append({
+            "index": sample["index"], "seed": task.seed, "why": why.get(sample["index"], []),
+            "dir": f"samples/{sample['index']:04d}",
+            "report": f"samples/{sample['index']:04d}/report.html",
+            "command": task.qualify_command(), "verdict": sample["verdict"],
+            "error": sample.get("error"),
+            "reproduced": same_measurements(sample["measurements"],
+                                            original.get("measurements", []))})
+    map_samples(client, list(tasks.values()), on_rerun,
+                prefix=f"agrihil-{plan.campaign_id}-rerun")
+
+
+def _why(doc: dict[str, Any]) -> dict[int, list[str]]:
+    why: dict[int, list[str]] = {}
+    for i in doc["summary"]["failing_samples"]:
+        why.setdefault(i, []).append("failed")
+    for key, stats in doc["measurements"].items():
+        for i in stats["worst"][:1]:
+            why.setdefault(i, []).append(f"worst {key}")
+    return why
+
+
+def _write_report(out: Path) -> None:
+    from hil.report.campaign_page import write_campaign_html
+
+    try:
+        write_campaign_html(out)
+    except Exception as exc:  # the record is written; say loudly the page is not
+        print(f"hil: report.html not written: {exc}", file=sys.stderr)
+
+
+def _report(doc: dict[str, Any], out: Path) -> int:
+    s = doc["summary"]
+    for rerun in doc["reruns"]:
+        flag = "" if rerun["reproduced"] else "  (NOT reproduced: see its report)"
+        print(f"hil: sample {rerun['index']} ({'; '.join(rerun['why']) or 'rerun'}): "
+              f"{rerun['command']}{flag}", file=sys.stderr)
+    rate = s["pass_rate"]
+    print(f"hil: campaign {doc['dut']['name']}: {s['verdict'].upper()}: {s['reason']}; "
+          f"{s['passed']}/{s['judged']} passed"
+          + (f" ({rate:.1%}, 95 % CI {s['ci95'][0]:.3f}-{s['ci95'][1]:.3f})"
+             if rate is not None else "")
+          + f"; {s['errors']} errors; {doc['wall_s']:.0f} s; report: {out / 'report.html'}",
+          file=sys.stderr)
+    return EXIT_BY_VERDICT.get(s["verdict"], 2)
