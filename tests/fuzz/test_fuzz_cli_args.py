@@ -21,7 +21,6 @@ from hypothesis import strategies as st
 from tests.fuzz.cli_cases import ROOT, bad_argv
 
 
-
 @settings(max_examples=int(os.environ.get("AGRIHIL_FUZZ_CLI_EXAMPLES", "30")))
 @given(data=st.data())
 def test_bad_arguments_are_refused_up_front(data: st.DataObject,
