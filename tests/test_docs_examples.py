@@ -131,6 +131,10 @@ SKIPPED: dict[tuple[str, str], str] = {
      "--bus socketcan:can0 --out out/ecu"):
         "needs a physical ECU on can0; tests/kernel/test_physical_ecu.py qualifies one played "
         "by a process over the software bus and over vcan",
+    ("docs/guide/campaigns.md",
+     "hil campaign dut_profiles/fertilizer-piecewise-pid-firmware.toml --samples 300 --out camp"):
+        "300 samples take ~10 minutes on two cores (benchmarks/bench_campaign.py); the next "
+        "line runs a two-sample campaign the same way",
     ("docs/guide/gate-and-ci.md", "git diff ci/baselines/"):
         "reviews a change against the repository's history; the scratch checkout has none",
 }
@@ -480,6 +484,8 @@ class DocRunner:
             pass                                       # a MyST directive: generated content
         elif block.lang in ("", "text"):
             for no, text in block.lines:
+                if block.lang == "text" and re.search(r"\bPROFILE\b|\.\.\.|DUT-|\\$", text):
+                    continue      # a synopsis (a placeholder, an elision): not a command
                 assert not re.match(r"\s*(\$ |hil |python3? |bash )", text), (
                     f"{self.doc}:{no}: a command in an untagged code block: tag it ```sh so "
                     "that it runs")
@@ -597,6 +603,27 @@ def check_tolerance_example(runner: DocRunner, block: Block) -> None:
     load_tolerances(path)
 
 
+def check_campaign_toml_example(runner: DocRunner, block: Block) -> None:
+    """A dispersion example loads with the campaign's loader; a ``[campaign]`` table example
+    loads as part of a real profile."""
+    import tomllib
+
+    data = tomllib.loads(block.text)
+    if "campaign" in data:
+        from hil.dut.profile import load_profile
+
+        profile = (REPO / "dut_profiles/fertilizer-piecewise-pid-daemon.toml").read_text()
+        path = runner.scratch / f"profile-{block.lineno}.toml"
+        path.write_text(profile + "\n" + block.text)
+        load_profile(path)
+        return
+    from hil.campaign.dispersion import load_dispersion
+
+    path = runner.scratch / f"dispersion-{block.lineno}.toml"
+    path.write_text(block.text)
+    load_dispersion(path, rig="fertilizer")
+
+
 def check_baseline_example(runner: DocRunner, block: Block) -> None:
     """The baseline example loads with the gate's own loader (keys match name + conditions)."""
     from hil.gate.baseline import load_baseline
@@ -610,6 +637,7 @@ DATA_CHECKS: dict[tuple[str, str], Callable[[DocRunner, Block], None]] = {
     ("docs/reference/record-format.md", "json"): check_record_example,
     ("docs/reference/baseline-format.md", "json"): check_baseline_example,
     ("docs/guide/gate-and-ci.md", "toml"): check_tolerance_example,
+    ("docs/guide/campaigns.md", "toml"): check_campaign_toml_example,
 }
 
 

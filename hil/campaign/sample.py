@@ -76,10 +76,12 @@ def _quote(text: str) -> str:
 
 def pytest_argv(task: SampleTask, out: Path) -> list[str]:
     """The pytest command line of ``task`` writing into ``out``."""
-    from hil.cli.qualify import suites_dir
+    from hil.cli.suites import suite_location
+    from hil.dut.profile import load_profile
 
-    root = suites_dir()
-    argv = [sys.executable, "-m", "pytest", str(root), "-c", str(root / "pytest.ini"),
+    # the suites of the DUT's rig only, found through the agrihil.suites entry point
+    root, ini = suite_location(load_profile(task.profile).dut.rig)
+    argv = [sys.executable, "-m", "pytest", str(root), "-c", str(ini),
             "--rootdir", str(root), "-p", "no:cacheprovider", "-q", "--no-header",
             "--hil-dut", task.profile, "--hil-bus", task.bus, "--hil-clock", task.clock,
             "--hil-report", str(out), "--hil-suite", task.suites,
