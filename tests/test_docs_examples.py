@@ -613,7 +613,8 @@ def check_campaign_toml_example(runner: DocRunner, block: Block) -> None:
         from hil.dut.profile import load_profile
 
         profile = (REPO / "dut_profiles/fertilizer-piecewise-pid-daemon.toml").read_text()
-        path = runner.scratch / f"profile-{block.lineno}.toml"
+        path = runner.scratch / f"{block.lineno}" / "fertilizer-piecewise-pid-daemon.toml"
+        path.parent.mkdir()
         path.write_text(profile + "\n" + block.text)
         load_profile(path)
         return

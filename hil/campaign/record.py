@@ -74,6 +74,6 @@ def is_campaign(path: str | Path) -> bool:
     try:
         with open(path, encoding="utf-8") as fh:
             head = fh.read(4096)
-    except OSError:
+    except (OSError, UnicodeDecodeError):   # not a campaign: the record loader says why
         return False
     return f'"schema": "{SCHEMA}"' in head
