@@ -68,7 +68,8 @@ def format_send(msg: can.Message) -> bytes:
 def _receive_failed(exc: OSError) -> can.CanOperationError:
     """The error for a failed read. A server that closes while bytes of ours are still unread
     in its socket (it stopped before reading our last message) resets the connection instead
-    of ending it: that is still the server closing it, and is said so."""
+    of ending it: that is still the server closing it, and is said so.
+    """
     if isinstance(exc, ConnectionResetError):
         return can.CanOperationError(f"socketcand: the server closed the connection ({exc})")
     return can.CanOperationError(f"socketcand: receive failed: {exc}")
@@ -113,7 +114,8 @@ class SocketcandBus(can.BusABC):
     # handshake ---------------------------------------------------------------------------
     def _expect(self, want: bytes, step: str) -> None:
         """Read messages until ``want``; frames that arrive before or after it are kept,
-        anything else fails."""
+        anything else fails.
+        """
         chunk = b""
         while True:
             bodies = self._split(chunk)
@@ -235,7 +237,8 @@ class SocketcandBus(can.BusABC):
 
     def _split(self, chunk: bytes) -> list[bytes]:
         """The bodies of the complete ``< … >`` messages in what was kept plus ``chunk``; the
-        partial rest is kept for the next read."""
+        partial rest is kept for the next read.
+        """
         buf = self._partial + chunk if self._partial else chunk
         parts = buf.split(b">")
         tail = parts.pop()

@@ -14,12 +14,14 @@ class DutError(HilError, RuntimeError):
 
 class DutSetupError(DutError):
     """The DUT could not be started at all (its command cannot be executed): a setup error,
-    not a DUT failure."""
+    not a DUT failure.
+    """
 
 
 class DutStopped(DutError):
     """The DUT stopped during a run: it exited (any status), died of a signal, raised, or
-    stopped answering. ``what`` says how ("exited with SIGSEGV"); the runner adds when."""
+    stopped answering. ``what`` says how ("exited with SIGSEGV"); the runner adds when.
+    """
 
     def __init__(self, what: str, *, detail: str = "", at_s: float | None = None) -> None:
         self.what = what
@@ -38,7 +40,8 @@ class DutRunner(ABC):
     def start(self, bus_spec: str, env: dict[str, str] | None = None) -> None:
         """Start the DUT connected to ``bus_spec``; return when it is on the bus.
 
-        ``env``: what the rig offers besides the bus (e.g. ``AGRIHIL_GNSS_PORT``)."""
+        ``env``: what the rig offers besides the bus (e.g. ``AGRIHIL_GNSS_PORT``).
+        """
 
     @abstractmethod
     def stop(self, timeout: float = 5.0) -> dict[str, Any]:
@@ -46,7 +49,8 @@ class DutRunner(ABC):
 
     def restart(self, bus_spec: str, env: dict[str, str] | None = None) -> dict[str, Any]:
         """Stop the DUT and start it again, as a power cycle would; returns what :meth:`stop`
-        said of the run before the restart."""
+        said of the run before the restart.
+        """
         before = self.stop()
         self.start(bus_spec, env)
         return before

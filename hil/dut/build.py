@@ -58,7 +58,8 @@ def source_hash(profile: DutProfile) -> str:
 
 def source_sha256(profile: DutProfile) -> str:
     """SHA-256 of the build command and of every file (path and bytes) under the profile's
-    ``build.sources``, in sorted order."""
+    ``build.sources``, in sorted order.
+    """
     assert profile.build is not None
     digest = hashlib.sha256()
     digest.update("\0".join(profile.build.command).encode())
@@ -124,7 +125,8 @@ def file_sha256(path: Path) -> str:
 
 def compiler_version(build: Path) -> str:
     """First line of ``--version`` of the C (else C++) compiler CMake configured in ``build``
-    (from its ``CMakeCache.txt``); "" when there is none or it does not answer."""
+    (from its ``CMakeCache.txt``); "" when there is none or it does not answer.
+    """
     cache = build / "CMakeCache.txt"
     if not cache.is_file():
         return ""

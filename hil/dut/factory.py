@@ -101,7 +101,8 @@ def profile_run_options(profile: DutProfile, *, rig_from: DutProfile | None = No
     """What every run of ``profile`` takes from it besides the DUT runner, as
     :class:`hil.rig.RunOptions` fields: the flood limit, and the rig's config overrides
     (``[rig]``) of ``rig_from`` (default: ``profile``; a baseline DUT runs on the rig of the
-    DUT it is compared with)."""
+    DUT it is compared with).
+    """
     rig = rig_from or profile
     return {"rig_config": dict(rig.rig_config), "rig_config_source": str(rig.path or ""),
             "max_dut_frames_per_period": profile.timing.max_frames_per_period}

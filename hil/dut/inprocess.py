@@ -56,7 +56,8 @@ class InProcessDut(DutRunner):
 
     def _stopped(self, exc: BaseException) -> DutStopped:
         """What the run reports of a controller that raised: any exception, ``SystemExit``
-        (``sys.exit(0)`` too) included: a controller has no business ending the process."""
+        (``sys.exit(0)`` too) included: a controller has no business ending the process.
+        """
         self._failure = exc
         what = (f"exited (SystemExit({exc.code!r}) in-process)" if isinstance(exc, SystemExit)
                 else f"raised {type(exc).__name__}: {exc}")

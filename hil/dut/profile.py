@@ -214,7 +214,8 @@ def load_profile(path: str | Path) -> DutProfile:
 
 def database_path(database: str, profile_path: Path | None) -> Path:
     """Where ``wiring.database`` points: absolute, or relative to the project root (as the
-    shipped profiles write it), else to the profile's own directory."""
+    shipped profiles write it), else to the profile's own directory.
+    """
     p = Path(database)
     if p.is_absolute():
         return p
@@ -230,7 +231,8 @@ def database_path(database: str, profile_path: Path | None) -> Path:
 @functools.lru_cache(maxsize=32)
 def _database_ids(path: str, mtime_ns: int, size: int) -> frozenset[int]:
     """The frame ids a CAN database declares (cached per file version); raises ValueError
-    (or cantools' own errors) when the file is not a database."""
+    (or cantools' own errors) when the file is not a database.
+    """
     import cantools
 
     db = cantools.database.load_file(path, strict=False)
@@ -243,7 +245,8 @@ def _check_database(profile: DutProfile, path: Path) -> None:
     """``wiring.database`` must be a readable CAN database that declares frames.
 
     (Not every command id is checked against it: the depth rig's drive takes its controlword
-    in RPDO 0x202, a CANopen frame its DBC does not list today.)"""
+    in RPDO 0x202, a CANopen frame its DBC does not list today.)
+    """
     database = profile.wiring.database
     if not database:
         return
@@ -270,7 +273,8 @@ def _check_database(profile: DutProfile, path: Path) -> None:
 def rig_control_period_ms(rig: str, overrides: dict[str, Any] | None = None,
                           source: str = "") -> tuple[float, bool]:
     """The rig's control period (its SYNC period) in ms with the profile's ``[rig]`` overrides,
-    and whether the rig's config sets it (``[rig] wiring.sync_period_ms``)."""
+    and whether the rig's config sets it (``[rig] wiring.sync_period_ms``).
+    """
     from hil.rig.registry import load_rig
 
     rig_cls = load_rig(rig)

@@ -74,7 +74,8 @@ def target_mass(t: np.ndarray, target_flow_gps: np.ndarray, t_start: float, t_en
 def delivered_mass(t: np.ndarray, cumulative_g: np.ndarray, t_start: float,
                    t_end: float) -> float | np.ndarray:
     """M2 (g): ``cum(t_end) - cum(t_start)`` of a cumulative-grams truth trace ((n,) or
-    (n, rows)), linearly interpolated at the window edges."""
+    (n, rows)), linearly interpolated at the window edges.
+    """
     t = as_time(t)
     c = np.asarray(cumulative_g, dtype=float)
     if c.shape[:1] != t.shape or c.ndim > 2:

@@ -141,7 +141,8 @@ def _filter_length(t: np.ndarray, filter_s: float) -> int:
 
 def _enter_and_stay(ts: np.ndarray, d: np.ndarray, step: float, band: float) -> float:
     """First sample time from which ``|d/step - 1| < band`` holds to the end (step_info's rule:
-    a sample exactly on the band edge counts as outside); ``nan`` if the last sample is out."""
+    a sample exactly on the band edge counts as outside); ``nan`` if the last sample is out.
+    """
     outside = np.nonzero(np.abs(d / step - 1.0) >= band)[0]
     settled = 0 if outside.size == 0 else int(outside[-1]) + 1
     return float(ts[settled]) if settled < ts.size else math.nan

@@ -51,7 +51,8 @@ _PACKAGES = ("agrihil", "python-can", "cantools", "canopen", "control", "numpy",
 def versions() -> dict[str, str]:
     """Python, platform and package versions (looked up once per process: the metadata scan
     and ``platform.platform()`` cost tens of ms, and they do not change under a running
-    process)."""
+    process).
+    """
     return dict(_versions())
 
 

@@ -88,7 +88,8 @@ def write_npz(path: Path, arrays: dict[str, np.ndarray], *, level: int = 1) -> P
     ``.npy`` members written by ``np.lib.format.write_array``; ``np.load`` reads it the same
     way) with deflate level 1 instead of zlib's default 6. Recorded signals are float64 that
     compress by a third either way; level 1 takes half the time or less, and saving sits on
-    every run's critical path."""
+    every run's critical path.
+    """
     with zipfile.ZipFile(path, mode="w", compression=zipfile.ZIP_DEFLATED,
                          compresslevel=level) as archive:
         for name, value in arrays.items():

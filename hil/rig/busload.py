@@ -61,7 +61,8 @@ def offered_load(schedule: list[LoadFrame], bitrate_bps: int) -> float:
 
 class BusLoad:
     """A load node on ``bus`` (a python-can bus of its own: the rig's frames are not its
-    business). A context manager: the periodic sends stop on exit."""
+    business). A context manager: the periodic sends stop on exit.
+    """
 
     def __init__(self, bus: can.BusABC, fraction: float, bitrate_bps: int) -> None:
         self.bus = bus
@@ -79,7 +80,8 @@ class BusLoad:
 
     def stop(self) -> None:
         """Stop every periodic send and wait for its thread: python-can's ``stop`` only flags
-        it, and a send after the bus is shut down fails in that thread."""
+        it, and a send after the bus is shut down fails in that thread.
+        """
         for task in self._tasks:
             task.stop()
         for task in self._tasks:
@@ -106,7 +108,8 @@ class BusLoad:
 def wire_load(log_path: str, bitrate_bps: int, t0: float | None = None,
               t1: float | None = None) -> float:
     """Fraction of the bit rate the frames of a bus log occupied between ``t0`` and ``t1``
-    (log timestamps; default: the first and last frame)."""
+    (log timestamps; default: the first and last frame).
+    """
     stamps_bits = [(msg.timestamp, frame_bits(msg.arbitration_id, msg.is_extended_id,
                                               bytes(msg.data)))
                    for msg in can.LogReader(log_path) if not msg.is_error_frame]

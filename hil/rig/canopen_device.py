@@ -60,7 +60,8 @@ class _NoTask:
 
 class OutboxNetwork(canopen.Network):
     """A canopen Network without a bus: frames canopen sends are collected in ``outbox``
-    (take them with :meth:`take`); received frames are fed in with ``notify``."""
+    (take them with :meth:`take`); received frames are fed in with ``notify``.
+    """
 
     def __init__(self) -> None:
         super().__init__(bus=None)
@@ -81,7 +82,8 @@ class OutboxNetwork(canopen.Network):
 
 class CanopenDevice(Device):
     """A CANopen node from an EDS. ``autostart``: go operational after boot-up without waiting
-    for an NMT start (as I/O modules with NMT startup 0x1F80 bit 2 do)."""
+    for an NMT start (as I/O modules with NMT startup 0x1F80 bit 2 do).
+    """
 
     def __init__(self, name: str, node_id: int, eds: str | Path, *,
                  autostart: bool = True) -> None:
@@ -118,7 +120,8 @@ class CanopenDevice(Device):
         """The value the object dictionary holds now (what the DUT last wrote, say).
 
         Decoded straight from the node's data store (what its SDO server would answer),
-        without the SDO layer: this runs in the physics loop."""
+        without the SDO layer: this runs in the physics loop.
+        """
         obj = self.node.object_dictionary[index]
         if not isinstance(obj, canopen.objectdictionary.ODVariable):
             obj = obj[subindex]
@@ -138,7 +141,8 @@ class CanopenDevice(Device):
 
     def raise_error(self, code: int, bits: int | None = None, info: int = 0) -> None:
         """Error ``code`` occurred: 0x1001/0x1003 updated and its EMCY queued (once while it
-        stays active)."""
+        stays active).
+        """
         event = self.errors.occur(code, bits, info)
         if event is not None:
             self._emcy_pending.append(emcy_payload(event[0], self.error_register()))
@@ -302,7 +306,8 @@ class CanopenDevice(Device):
     def _reset(self, time_s: float) -> list[can.Message]:
         """NMT reset node / reset communication: the boot-up message, then pre-operational
         (operational with autostart); the heartbeat restarts from now. The application (a
-        drive's state machine) is not reset."""
+        drive's state machine) is not reset.
+        """
         self.network.take()
         self._pending_sync_rpdos.clear()
         self._sync_count = 0
@@ -376,7 +381,8 @@ class CanopenDevice(Device):
         """(variable, index, subindex, first byte, end byte) of every mapped variable if all
         are whole bytes at whole-byte offsets (else None: canopen's bit-level path). Kept per
         map and rebuilt when canopen rebuilds the map's variable list (a new list on every
-        ``read``) or adds to it."""
+        ``read``) or adds to it.
+        """
         variables = pdo.map
         cached = self._plans.get(id(pdo))
         if cached is not None and cached[0] is variables and cached[1] == len(variables):

@@ -111,7 +111,8 @@ class ErrorState:
         """Error ``code`` occurs: record it, return (code, register) for its EMCY.
 
         ``bits``: its error register bits (default: from the code's class; bit 0 always).
-        Returns None if the error is already active (no second EMCY for the same error)."""
+        Returns None if the error is already active (no second EMCY for the same error).
+        """
         code &= 0xFFFF
         if code == 0:
             raise ValueError("error code 0x0000 means 'no error'; use clear()")
@@ -126,14 +127,16 @@ class ErrorState:
 
     def clear(self, code: int) -> tuple[int, int] | None:
         """Error ``code`` went away: return (0x0000, register of those left) for the reset
-        EMCY, or None if it was not active."""
+        EMCY, or None if it was not active.
+        """
         if self.active.pop(code & 0xFFFF, None) is None:
             return None
         return 0, self.register
 
     def clear_all(self) -> tuple[int, int] | None:
         """Every active error went away (a fault reset): the reset EMCY, or None if none was
-        active."""
+        active.
+        """
         if not self.active:
             return None
         self.active.clear()

@@ -49,7 +49,8 @@ def load_compiled(path: Path, build: Callable[[Message], F | None], *,
                   strict: bool = True) -> tuple[Database, dict[str, F]]:
     """The DBC at ``path`` and, by message name, what ``build`` compiles of its messages
     (those it returns ``None`` for are left out). Cached while the file is unchanged; a file
-    that cannot be loaded raises :class:`FrameError` naming it."""
+    that cannot be loaded raises :class:`FrameError` naming it.
+    """
     try:
         st = path.stat()
         key: tuple[Any, ...] | None = (str(path.resolve()), st.st_mtime_ns, st.st_size,
@@ -132,7 +133,8 @@ class FrameLayout:
     @classmethod
     def build(cls, message: Any) -> FrameLayout | None:
         """The layout of ``message``, or ``None`` if it is not one this module compiles or if
-        the compiled form disagrees with cantools on the probe values."""
+        the compiled form disagrees with cantools on the probe values.
+        """
         if message.is_container or message.is_multiplexed():
             return None
         length = message.length
@@ -181,7 +183,8 @@ class FrameLayout:
 
     def unpack(self, data: bytes) -> list[int]:
         """Raw value of every signal (in :attr:`signals` order) from at least ``length``
-        bytes (extra bytes are ignored, as cantools does)."""
+        bytes (extra bytes are ignored, as cantools does).
+        """
         x = int.from_bytes(data[:self.length], "little")
         out = []
         for sig in self.signals:
@@ -228,7 +231,8 @@ class FrameLayout:
 
 def _kind(conversion: Any) -> int | None:
     """Which numeric conversion cantools applies: the conversion itself, or for a signal with
-    a value table the one cantools' factory builds for its scale and offset."""
+    a value table the one cantools' factory builds for its scale and offset.
+    """
     if conversion.choices is not None:
         conversion = BaseConversion.factory(scale=conversion.scale, offset=conversion.offset,
                                             choices=None, is_float=conversion.is_float)

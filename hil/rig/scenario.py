@@ -135,7 +135,8 @@ class Scenario:
 def load_scenario(path: str | Path) -> Scenario:
     """Read and check a scenario file; an event after the end of the run (it would never
     happen) is refused, naming it. (A scenario shortened in code, e.g. with
-    ``dataclasses.replace``, may drop its later events on purpose.)"""
+    ``dataclasses.replace``, may drop its later events on purpose.)
+    """
     scenario = load_toml(path, Scenario)
     for i, event in enumerate(scenario.events):
         if event.at_s > scenario.duration_s:
