@@ -75,16 +75,12 @@ class RunOptions:
 
     out_dir: Path
     clock: str = "lockstep"
-    #: 'softbus' starts an embedded software bus; 'virtual' an in-process bus; else a spec
     bus: str = "softbus"
     seed: int | None = None
     step_timeout_s: float = 2.0
     csv: bool = False
-    #: overrides of the rig's packaged config (a DUT profile's ``[rig]``), and their source
     rig_config: dict[str, Any] = field(default_factory=dict)
     rig_config_source: str = ""
-    #: more frames than this from the DUT within one control period ends the run (a DUT that
-    #: floods the bus); a profile's timing.max_frames_per_period. None: no limit
     max_dut_frames_per_period: int | None = None
     extra_meta: dict[str, Any] = field(default_factory=dict)
 
