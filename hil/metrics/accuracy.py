@@ -73,8 +73,14 @@ def target_mass(t: np.ndarray, target_flow_gps: np.ndarray, t_start: float, t_en
 
 def delivered_mass(t: np.ndarray, cumulative_g: np.ndarray, t_start: float,
                    t_end: float) -> float | np.ndarray:
-    """M2 (g): ``cum(t_end) - cum(t_start)`` of a cumulative-grams truth trace ((n,) or
-    (n, rows)), linearly interpolated at the window edges.
+    """M2 (g): ``cum(t_end) - cum(t_start)`` of a cumulative-grams truth trace.
+
+    The trace is (n,) or (n, rows), linearly interpolated at the window edges.
+
+    Raises
+    ------
+    ValueError
+        The trace's shape does not match ``t``, or the window is empty.
     """
     t = as_time(t)
     c = np.asarray(cumulative_g, dtype=float)
@@ -90,6 +96,22 @@ def delivered_mass(t: np.ndarray, cumulative_g: np.ndarray, t_start: float,
 
 @dataclass(frozen=True)
 class RowAccuracy(DictMixin):
+    """θ of one row over a window (one entry of :attr:`AccuracyResult.rows`).
+
+    Parameters
+    ----------
+    row : int
+        The row's index, from 0.
+    target_mass_g : float
+        M1: the row's target mass over the window.
+    delivered_mass_g : float
+        M2: the row's delivered (true) mass over the window.
+    theta_pct : float
+        θ, [F] eq. 15.
+    bias_pct : float
+        ``(M2 - M1) / M1 · 100``.
+    """
+
     row: int
     target_mass_g: float
     delivered_mass_g: float

@@ -75,8 +75,10 @@ def timing_summary(health: Mapping[str, Any] | Any) -> TimingSummary:
 
 
 def _rebin(edges: np.ndarray, counts: np.ndarray, union: np.ndarray) -> np.ndarray:
-    """Counts of bins ``edges`` moved onto ``union`` (a superset of ``edges``), each into the
-    union bin ending at the source bin's upper edge (conservative: never earlier).
+    """Counts of bins ``edges`` moved onto ``union`` (a superset of ``edges``).
+
+    Each goes into the union bin ending at the source bin's upper edge (conservative: never
+    earlier).
     """
     out = np.zeros(union.size - 1, dtype=np.int64)
     upper = np.searchsorted(union, edges[1:])          # exact: edges are members of union
