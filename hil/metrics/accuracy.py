@@ -144,10 +144,35 @@ def flow_accuracy(t: np.ndarray, target_flow_gps: np.ndarray, cumulative_g: np.n
                   row_weights: np.ndarray | None = None) -> AccuracyResult:
     """[F] eq. 15 over ``[t_start, t_end]``, per row and total.
 
-    ``target_flow_gps``: (n,) total target flow, or (n, rows) per row, sampled at ``t``.
-    ``cumulative_g``: (m,) total or (m, rows) per-row delivered grams at ``t_truth`` (default
-    ``t``). A total target is split over the rows by ``row_weights`` (default equal: [F]'s four
-    identical rows). With a 1-D truth only the total is reported.
+    The total θ is computed from the summed masses; with a 1-D truth only the total is reported.
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        Sample times of the target flow, in s.
+    target_flow_gps : numpy.ndarray
+        (n,) total target flow, or (n, rows) per row, in g/s, sampled at ``t``.
+    cumulative_g : numpy.ndarray
+        (m,) total or (m, rows) per-row delivered grams at ``t_truth``.
+    t_start, t_end : float
+        The window, in s.
+    t_truth : numpy.ndarray, optional
+        Sample times of ``cumulative_g`` (default ``t``).
+    interp : {"linear", "previous"}, optional
+        How the target flow is integrated (:func:`integrate_trace`).
+    row_weights : numpy.ndarray, optional
+        How a total target is split over the rows (default equal: [F]'s four identical rows).
+
+    Returns
+    -------
+    AccuracyResult
+        θ and bias, total and per row, with the masses.
+
+    Raises
+    ------
+    ValueError
+        Shapes that do not match, an empty window, bad row weights, or per-row targets with a
+        total truth.
     """
     t_truth = t if t_truth is None else t_truth
     m1 = target_mass(t, target_flow_gps, t_start, t_end, interp=interp)

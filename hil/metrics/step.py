@@ -159,11 +159,50 @@ def step_response(t: np.ndarray, y: np.ndarray, *, t0: float, target: float,
                   t_end: float | None = None, pre_window_s: float = 1.0) -> StepMetrics:
     """Step-response metrics of ``y(t)`` for a setpoint step at ``t0`` to ``target``.
 
-    ``y0`` is the level the step starts from; ``None`` takes the median of the raw samples in
-    ``[t0 - pre_window_s, t0)`` (or the first sample at/after ``t0`` if there are none). The
-    window runs from ``t0`` to ``t_end`` (default: the last sample). Caller errors (shapes,
-    a zero step, a window without samples) raise ``ValueError``; a signal that does not do
-    what a metric needs gives ``nan`` for that metric and a reason in ``notes``.
+    The definitions are in the module docstring (:mod:`hil.metrics.step`). A signal that does not
+    do what a metric needs gives nan for that metric and a reason in ``notes``.
+
+    Parameters
+    ----------
+    t, y : numpy.ndarray
+        The measured signal's samples, same shape; non-finite samples are dropped.
+    t0 : float
+        When the setpoint stepped.
+    target : float
+        The setpoint after the step.
+    y0 : float, optional
+        The level the step starts from; None takes the median of the raw samples in
+        ``[t0 - pre_window_s, t0)`` (or the first sample at or after ``t0`` if there are none).
+    band : float, optional
+        The response-time band, a fraction of ``abs(step)`` in (0, 1).
+    settling_band : float, optional
+        The settling-time band, a fraction of ``abs(step)`` in (0, 1).
+    rise_limits : tuple of (float, float), optional
+        The rise time's start and end, fractions of the step, ``0 <= low < high <= 1``.
+    steady_window_s : float, optional
+        The steady-state error is the mean over this last part of the window.
+    min_hold_s : float, optional
+        How long the signal must have been in the band before the end for a response or
+        settling time.
+    filter_kind : {"median", "mean", "none"}, optional
+        The smoothing applied before the band, rise and peak tests.
+    filter_s : float, optional
+        The smoothing window, in s.
+    t_end : float, optional
+        The end of the window (default: the last sample).
+    pre_window_s : float, optional
+        The stretch before ``t0`` that ``y0`` is taken from.
+
+    Returns
+    -------
+    StepMetrics
+        The metrics, with the notes.
+
+    Raises
+    ------
+    ValueError
+        Mismatched shapes, bands or rise limits out of range, fewer than 2 samples in the window,
+        or a zero step.
     """
     t = as_time(t)
     y = np.asarray(y, dtype=float)

@@ -88,7 +88,25 @@ def _rebin(edges: np.ndarray, counts: np.ndarray, union: np.ndarray) -> np.ndarr
 
 def merge_timing(healths: Sequence[Mapping[str, Any] | Any], *,
                  labels: Sequence[str] | None = None) -> TimingSummary:
-    """Worst-case merge of several runs' timing health (see the module docstring)."""
+    """Worst-case merge of several runs' timing health (see the module docstring).
+
+    Parameters
+    ----------
+    healths : sequence
+        Each run's ``TimingHealth`` (object or dict).
+    labels : sequence of str, optional
+        The runs' names in the reasons of invalid timing (default ``run 0``, ``run 1``, ...).
+
+    Returns
+    -------
+    TimingSummary
+        The worst case over the runs, in µs.
+
+    Raises
+    ------
+    ValueError
+        No runs, or not one label per run.
+    """
     records = [_as_mapping(h) for h in healths]
     if not records:
         raise ValueError("no timing health to summarise")

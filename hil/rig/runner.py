@@ -46,7 +46,7 @@ LOCKSTEP_BUSY_POLL_US = 300.0
 class RunOptions:
     """How one scenario run is carried out: where it writes, its clock, bus, seed and limits.
 
-    Attributes
+    Parameters
     ----------
     out_dir : Path
         Where the run's record, traces and bus log go.
@@ -137,7 +137,7 @@ def _start_bus_load(spec: str, fraction: float, bitrate_bps: int,
 class RunResult:
     """What :func:`run_scenario` returns: the run's record and where it was written.
 
-    Attributes
+    Parameters
     ----------
     record : dict
         The run's final record (as in its ``record.json``).
