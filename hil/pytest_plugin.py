@@ -62,6 +62,13 @@ SCHEMA = "agrihil.qualification/1"
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
+    """Add the ``--hil-*`` options to pytest's command line (group "agrihil").
+
+    Parameters
+    ----------
+    parser : pytest.Parser
+        pytest's option parser.
+    """
     group = parser.getgroup("agrihil", "agrihil hardware-in-the-loop")
     group.addoption("--hil-dut", metavar="PROFILE", help="DUT profile (TOML) under test")
     group.addoption("--hil-bus", metavar="SPEC", default="softbus",
@@ -87,6 +94,21 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 
 
 def pytest_configure(config: pytest.Config) -> None:
+    """Register the markers and, with ``--hil-dut``, start the qualification session.
+
+    The profile is loaded and validated, the bus checked against the DUT's kind and the seed
+    range checked; the :class:`QualificationSession` is registered as a plugin so its hooks run.
+
+    Parameters
+    ----------
+    config : pytest.Config
+        pytest's configuration.
+
+    Raises
+    ------
+    pytest.UsageError
+        The profile, the bus spec or the seed is not usable (a one-line message naming the option).
+    """
     config.addinivalue_line("markers", "hil_rig(name): a HIL test for the named rig")
     config.addinivalue_line("markers", f"hil_suite(name): suite of the test ({', '.join(SUITES)})")
     path = config.getoption("--hil-dut")
@@ -131,6 +153,23 @@ def _rig_overrides(profile: DutProfile, items: list[str]) -> dict[str, Any]:
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Validate the ``hil_rig`` and ``hil_suite`` markers and select the tests to run.
+
+    Tests of suites not named by ``--hil-suite`` are deselected; with a DUT, tests marked for
+    another rig than the DUT's are skipped with the reason.
+
+    Parameters
+    ----------
+    config : pytest.Config
+        pytest's configuration.
+    items : list of pytest.Item
+        The collected tests; deselected ones are removed in place.
+
+    Raises
+    ------
+    pytest.UsageError
+        A marker names no known rig or suite, or ``--hil-suite`` names an unknown suite.
+    """
     from hil.rig.registry import available_rigs
 
     session = config.stash.get(_SESSION, None)
@@ -220,8 +259,33 @@ class QualificationSession:
             bus: str | None = None, clock: str | None = None,
             step_timeout_s: float = 5.0) -> RunResult:
         """One scenario run of ``profile`` (default: the DUT under qualification), cached.
-        ``bus``/``clock`` override the session's (a suite that only means something in real
-        time, such as bus load, runs real time even in a lockstep qualification)."""
+
+        Parameters
+        ----------
+        nodeid : str
+            The node id of the test the run is for (it names the run's directory).
+        rig_cls : type of Rig
+            The rig to run.
+        scenario : Scenario or str
+            The scenario, or the name of one of the rig's packaged scenarios.
+        label : str, optional
+            Tells apart several runs of one test in the run's directory name.
+        seed : int, optional
+            The run's seed (default: the scenario's); ``--hil-seed`` is added to it.
+        profile : DutProfile, optional
+            The DUT to run (default: the DUT under qualification, e.g. another for a baseline).
+        bus, clock : str, optional
+            Override the session's (a suite that only means something in real time, such as
+            bus load, runs real time even in a lockstep qualification).
+        step_timeout_s : float, optional
+            How long the DUT may stay silent before it counts as stopped answering (s).
+
+        Returns
+        -------
+        RunResult
+            The run's result; the same object for a repeated run with the same key (scenario,
+            seed, DUT, bus and clock).
+        """
         profile = profile or self.profile
         clock = clock or self.clock
         if isinstance(scenario, str):
@@ -269,8 +333,11 @@ class QualificationSession:
         return result
 
     def _conformance(self, nodeid: str, rig_cls: type[Rig], result: RunResult) -> None:
-        """The run's bus conformance (:mod:`hil.conformance`): its measurements are the
-        test's, its per-message table goes to the run's ``conformance.json``."""
+        """Judge the run's bus conformance (:mod:`hil.conformance`).
+
+        Its measurements are the test's, its per-message table goes to the run's
+        ``conformance.json``.
+        """
         from hil.conformance import run_conformance, write_detail
 
         # the run's directory tells its measurements from the other runs' (same names)
@@ -287,6 +354,19 @@ class QualificationSession:
             self._keep(nodeid, m, result)
 
     def run_dir_of(self, result: RunResult) -> str:
+        """The report-relative directory (``runs/...``) a run of this session wrote to.
+
+        Parameters
+        ----------
+        result : RunResult
+            A run returned by :meth:`run`.
+
+        Returns
+        -------
+        str
+            Its directory relative to the report directory, or ``""`` if the run is not this
+            session's.
+        """
         for entry in self.runs.values():
             if entry.result is result:
                 return entry.rel_dir
@@ -296,6 +376,36 @@ class QualificationSession:
     def measure(self, nodeid: str, name: str, value: float, *,
                 conditions: dict[str, Any] | None = None, run: RunResult | None = None,
                 note: str = "") -> Measurement:
+        """Judge one measurement against the profile's limits and keep it for the record.
+
+        The limit is the profile's ``[limits]`` entry for ``name``, else the catalogue's default.
+
+        Parameters
+        ----------
+        nodeid : str
+            The node id of the test that measured.
+        name : str
+            The measurement's name in the catalogue (:mod:`hil.limits`).
+        value : float
+            The measured value, in the catalogue's unit.
+        conditions : dict, optional
+            The conditions the value was measured under (scenario parameters and the like).
+        run : RunResult, optional
+            The run the value comes from. If the DUT stopped in that run, the value is recorded as
+            NaN (failed) with the reason in the note.
+        note : str, optional
+            A remark kept with the measurement.
+
+        Returns
+        -------
+        Measurement
+            The judged measurement.
+
+        Raises
+        ------
+        ConfigError
+            ``name`` is not in the catalogue for the DUT's rig.
+        """
         rig = self.profile.dut.rig.replace("-", "_")
         if not known_measurement(name, rig):
             raise ConfigError(f"{nodeid}: measurement {name!r} is not in the catalogue "
@@ -329,8 +439,11 @@ class QualificationSession:
     # --- pytest hooks ---------------------------------------------------------------------------
     @pytest.hookimpl(wrapper=True)
     def pytest_pyfunc_call(self, pyfuncitem: pytest.Function) -> Generator[None, Any, Any]:
-        """A test whose run ended because its DUT stopped fails with that reason; what its
-        code raised computing on the short traces is not a suite error (and not shown)."""
+        """Fail a test whose DUT stopped with that reason, not with what its code raised.
+
+        What the test's code raised computing on the short traces is not a suite error (and is
+        not shown).
+        """
         try:
             return (yield)
         except Exception as exc:
@@ -345,9 +458,11 @@ class QualificationSession:
         pytest.fail(message, pytrace=False)    # outside the except: no exception chain
 
     def _fail_unmeasured(self, item: pytest.Function) -> list[str]:
-        """Record, as failed (NaN, with the reason), the measurements a test whose DUT stopped
-        did not get to: the catalogue names its code names (literally or as a parameter),
-        with the test's other parameters as conditions (the suites' convention)."""
+        """Record as failed the measurements a test whose DUT stopped did not get to.
+
+        Each is NaN with the reason: the catalogue names its code names (literally or as a
+        parameter), with the test's other parameters as conditions (the suites' convention).
+        """
         import inspect
 
         rig = self.profile.dut.rig.replace("-", "_")
@@ -377,6 +492,24 @@ class QualificationSession:
     @pytest.hookimpl(hookwrapper=True)
     def pytest_runtest_makereport(self, item: pytest.Item,
                                   call: pytest.CallInfo[None]) -> Generator[None, Any, None]:
+        """Turn a test's judged measurements into its outcome.
+
+        The measurements become junit.xml properties; a test whose run had invalid real-time
+        timing is reported skipped (invalid bench), and a passing test with a failed or errored
+        measurement is reported failed, listing those measurements.
+
+        Parameters
+        ----------
+        item : pytest.Item
+            The test.
+        call : pytest.CallInfo
+            The call phase's information.
+
+        Yields
+        ------
+        None
+            Control to the other hook implementations, which build the report.
+        """
         outcome = yield
         report: pytest.TestReport = outcome.get_result()
         if report.when != "call":
@@ -401,6 +534,13 @@ class QualificationSession:
 
     @pytest.hookimpl(trylast=True)     # after the terminal's own PASSED/FAILED
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
+        """Log the test's outcome for the record and, in verbose runs, print its measurements.
+
+        Parameters
+        ----------
+        report : pytest.TestReport
+            The report of one phase of a test.
+        """
         self._log_test(report)
         if report.when == "call":
             self._print_measurements(report)
@@ -429,13 +569,39 @@ class QualificationSession:
                                "duration_s": round(report.duration, 3), "message": message})
 
     def pytest_collection_finish(self, session: pytest.Session) -> None:
+        """Remember the tests selected to run, to tell later whether the session completed.
+
+        Parameters
+        ----------
+        session : pytest.Session
+            The pytest session.
+        """
         self.planned = [item.nodeid for item in session.items]
         self._config = session.config
 
     def pytest_keyboard_interrupt(self, excinfo: Any) -> None:
+        """Mark the session interrupted (SIGINT or SIGTERM), so its record says so.
+
+        Parameters
+        ----------
+        excinfo : ExceptionInfo
+            The interrupt, unused.
+        """
         self.interrupted = True
 
     def pytest_sessionfinish(self, session: pytest.Session, exitstatus: int) -> None:
+        """Write ``record.json`` (atomically) and ``report.html`` into the report directory.
+
+        A failure to write the HTML report does not lose the record; it is reported in the
+        terminal summary.
+
+        Parameters
+        ----------
+        session : pytest.Session
+            The pytest session.
+        exitstatus : int
+            pytest's exit status.
+        """
         record = self.record(exitstatus)
         self.report_dir.mkdir(parents=True, exist_ok=True)
         # atomic: a second Ctrl-C or a kill while writing leaves the old file or the new one
@@ -450,6 +616,13 @@ class QualificationSession:
             session.config.stash[_REPORT_ERROR] = f"report.html not written: {exc}"
 
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
+        """Print the verdict, the one-screen summary and where the record is.
+
+        Parameters
+        ----------
+        terminalreporter : TerminalReporter
+            pytest's terminal reporter.
+        """
         from hil.console import summary_lines
 
         error = terminalreporter.config.stash.get(_REPORT_ERROR, None)
@@ -503,6 +676,18 @@ class QualificationSession:
         return "pass"
 
     def record(self, exitstatus: int | None = None) -> dict[str, Any]:
+        """The qualification record of the session (schema ``agrihil.qualification/1``).
+
+        Parameters
+        ----------
+        exitstatus : int, optional
+            pytest's exit status, which decides whether the session was interrupted.
+
+        Returns
+        -------
+        dict
+            The record as written to ``record.json`` (see docs/reference/record-format.md).
+        """
         worst: dict[str, Any] | None = None
         runs = []
         for entry in self.runs.values():
@@ -550,8 +735,11 @@ _REPORT_ERROR = pytest.StashKey[str]()
 
 
 def _rig_config_identity(rig_cls: type[Rig], profile: DutProfile) -> dict[str, Any]:
-    """What the record says of the rig's config: its hash (the packaged config with the
-    profile's ``[rig]`` overrides applied) and the overrides as dotted keys."""
+    """What the record says of the rig's config.
+
+    Its hash (the packaged config with the profile's ``[rig]`` overrides applied) and the
+    overrides as dotted keys.
+    """
     config = rig_cls.load_config(profile.rig_config, source=str(profile.path or ""))
     out: dict[str, Any] = {}
     if dataclasses.is_dataclass(config) and not isinstance(config, type):
@@ -593,6 +781,13 @@ def _conditions(conditions: dict[str, Any]) -> str:
 # --- fixtures ----------------------------------------------------------------------------------
 @pytest.fixture(scope="session")
 def hil_session(request: pytest.FixtureRequest) -> QualificationSession:
+    """The qualification session of this pytest run [session scope].
+
+    Raises
+    ------
+    pytest.UsageError
+        No ``--hil-dut`` was given.
+    """
     session = request.config.stash.get(_SESSION, None)
     if session is None:
         raise pytest.UsageError("HIL suites need a DUT: pytest --hil-dut PROFILE "
@@ -602,17 +797,45 @@ def hil_session(request: pytest.FixtureRequest) -> QualificationSession:
 
 @pytest.fixture(scope="session")
 def hil_profile(hil_session: QualificationSession) -> DutProfile:
+    """The DUT profile under qualification, validated [session scope].
+
+    Returns
+    -------
+    DutProfile
+        The profile given by ``--hil-dut`` (with ``--hil-build-id`` applied).
+    """
     return hil_session.profile
 
 
 @pytest.fixture(scope="session")
 def hil_rig(hil_session: QualificationSession) -> type[Rig]:
+    """The rig class the DUT profile is wired to [session scope].
+
+    Returns
+    -------
+    type of Rig
+        The class named by the profile's ``[dut] rig``.
+    """
     return load_rig(hil_session.profile.dut.rig)
 
 
 @pytest.fixture
 def hil_run(request: pytest.FixtureRequest, hil_session: QualificationSession,
             hil_rig: type[Rig]) -> Callable[..., RunResult]:
+    """A function that runs a scenario against the DUT and returns its result [function scope].
+
+    The function is ``run(scenario, *, label="", rig=None, **kw)``: ``scenario`` is a
+    :class:`~hil.rig.scenario.Scenario` or the name of one of the rig's packaged scenarios,
+    ``label`` tells apart runs of one test (it names the run's directory), ``rig`` overrides the
+    DUT's rig class, and ``kw`` goes to :meth:`QualificationSession.run` (``seed``, ``profile``,
+    ``bus``, ``clock``, ``step_timeout_s``). Runs are cached for the session by scenario, seed, DUT,
+    bus and clock. A run whose setup fails fails the test with the reason.
+
+    Returns
+    -------
+    callable
+        ``run(scenario, *, label="", rig=None, **kw) -> RunResult``.
+    """
     nodeid = request.node.nodeid
 
     def run(scenario: Scenario | str, *, label: str = "", rig: type[Rig] | None = None,
@@ -627,6 +850,16 @@ def hil_run(request: pytest.FixtureRequest, hil_session: QualificationSession,
 @pytest.fixture
 def hil_measure(request: pytest.FixtureRequest,
                 hil_session: QualificationSession) -> Callable[..., Measurement]:
+    """A function that records a measurement with the profile's limits [function scope].
+
+    The function is ``measure(name, value, **kw)``; see :meth:`QualificationSession.measure` for
+    the keywords (``conditions``, ``run``, ``note``). A failed measurement fails the test.
+
+    Returns
+    -------
+    callable
+        ``measure(name, value, **kw) -> Measurement``.
+    """
     nodeid = request.node.nodeid
 
     def measure(name: str, value: float, **kw: Any) -> Measurement:

@@ -20,6 +20,19 @@ FrameHandler = Callable[[can.Message], list[can.Message]]
 
 
 class InlineBus(can.BusABC):
+    """A ``can.BusABC`` whose other end is a function: ``send`` calls it, ``recv`` gets its answers.
+
+    Parameters
+    ----------
+    handler : callable
+        Called with each frame sent; returns the frames to send in answer (a controller's
+        ``on_frame``).
+    channel : str, optional
+        The channel name python-can reports.
+    **kwargs
+        Passed to ``can.BusABC``.
+    """
+
     def __init__(self, handler: FrameHandler, channel: str = "inline", **kwargs: Any) -> None:
         self._handler = handler
         self._rx: deque[can.Message] = deque()
@@ -31,6 +44,7 @@ class InlineBus(can.BusABC):
         self._rx.extend(msgs)
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        """Hand ``msg`` to the handler; queue its answers for :meth:`recv` (no ``timeout``)."""
         self._rx.extend(self._handler(msg))
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
@@ -39,5 +53,6 @@ class InlineBus(can.BusABC):
         return None, False
 
     def shutdown(self) -> None:
+        """Drop the queued frames and shut the bus down."""
         self._rx.clear()
         super().shutdown()

@@ -31,7 +31,16 @@ _registered: dict[str, Opener] = {}
 
 
 def register_transport(name: str, opener: Opener) -> None:
-    """Add a transport at run time (tests, plugins that cannot use entry points)."""
+    """Add a transport at run time (tests, plugins that cannot use entry points).
+
+    Parameters
+    ----------
+    name : str
+        The name specs start with (case-insensitive); it takes precedence over a built-in or
+        entry point transport of that name.
+    opener : callable
+        ``opener(spec: BusSpec) -> can.BusABC``.
+    """
     _registered[name.lower()] = opener
 
 
@@ -62,7 +71,28 @@ def _resolve(name: str) -> Opener | None:
 
 
 def open_bus(spec: str | BusSpec) -> can.BusABC:
-    """Open the bus a spec names. Unknown specs fail with the list of what is available."""
+    """Open the bus a spec names.
+
+    Parameters
+    ----------
+    spec : str or BusSpec
+        ``TRANSPORT[:CHANNEL][,key=value...]``: a built-in transport (``virtual``,
+        ``socketcan``, ``socketcand``), one registered or declared as an entry point, or any
+        python-can interface.
+
+    Returns
+    -------
+    can.BusABC
+        The open bus; the caller shuts it down.
+
+    Raises
+    ------
+    BusSpecError
+        The spec cannot be parsed or names an unknown transport (the message lists the
+        available ones).
+    BusError
+        The transport could not open the bus.
+    """
     parsed = parse_spec(spec) if isinstance(spec, str) else spec
     opener = _resolve(parsed.transport)
     if opener is None:

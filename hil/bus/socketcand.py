@@ -1,5 +1,6 @@
-"""agrihil's own socketcand client: the same frames as python-can's, less work per frame, and
-optional write-behind (one socket write per lockstep step instead of one per frame).
+"""agrihil's own socketcand client: the same frames as python-can's, less work per frame.
+
+It also offers write-behind: one socket write per lockstep step instead of one per frame.
 
 python-can's ``socketcand`` interface stays the default for ``socketcand:`` specs; this client
 is chosen with a spec option (``socketcand:HOST:PORT/CH,client=agrihil`` or ``,batch=true``).
@@ -48,9 +49,9 @@ class SocketcandError(can.CanError):
 
 
 def format_send(msg: can.Message) -> bytes:
-    """``< send ID LEN B0 … >`` for a message, as the socketcand protocol wants it.
+    r"""``< send ID LEN B0 … >`` for a message, as the socketcand protocol wants it.
 
-    >>> format_send(can.Message(arbitration_id=0x181, data=b"\\x01\\xab", is_extended_id=False))
+    >>> format_send(can.Message(arbitration_id=0x181, data=b"\x01\xab", is_extended_id=False))
     b'< send 181 2 01 AB >'
     """
     can_id = msg.arbitration_id
@@ -66,9 +67,12 @@ def format_send(msg: can.Message) -> bytes:
 
 
 def _receive_failed(exc: OSError) -> can.CanOperationError:
-    """The error for a failed read. A server that closes while bytes of ours are still unread
-    in its socket (it stopped before reading our last message) resets the connection instead
-    of ending it: that is still the server closing it, and is said so."""
+    """The error for a failed read.
+
+    A server that closes while bytes of ours are still unread in its socket (it stopped before
+    reading our last message) resets the connection instead of ending it: that is still the
+    server closing it, and is said so.
+    """
     if isinstance(exc, ConnectionResetError):
         return can.CanOperationError(f"socketcand: the server closed the connection ({exc})")
     return can.CanOperationError(f"socketcand: receive failed: {exc}")
@@ -77,13 +81,33 @@ def _receive_failed(exc: OSError) -> can.CanOperationError:
 class SocketcandBus(can.BusABC):
     """A python-can bus on a socketcand server (agrihil's software bus, or socketcand itself).
 
-    :param channel: the server's channel to open (``can0``)
-    :param host: server address
-    :param port: server port
-    :param batch: keep sent frames until the next :meth:`recv`/:meth:`flush` (write-behind)
-    :param max_batch: with ``batch``, write once this many frames are waiting
-    :param busy_poll_us: in :meth:`recv`, poll the socket without blocking for this long first
-    :param connect_timeout: seconds for the connection and the handshake
+    Parameters
+    ----------
+    channel : str, optional
+        The server's channel to open (``can0``).
+    host : str, optional
+        The server's address.
+    port : int, optional
+        The server's port.
+    batch : bool, optional
+        Keep sent frames until the next :meth:`recv` or :meth:`flush` (write-behind).
+    max_batch : int, optional
+        With ``batch``, write once this many frames are waiting.
+    busy_poll_us : float, optional
+        In :meth:`recv`, poll the socket without blocking for this long first (0: off).
+    connect_timeout : float, optional
+        Seconds for the connection and the handshake.
+    can_filters : optional
+        python-can's receive filters.
+    **kwargs
+        Passed to ``can.BusABC``.
+
+    Raises
+    ------
+    SocketcandError
+        The server refused the handshake or closed the connection during it.
+    OSError
+        The connection could not be made.
     """
 
     def __init__(self, channel: str = "can0", host: str = "127.0.0.1", port: int = 29536, *,
@@ -112,8 +136,10 @@ class SocketcandBus(can.BusABC):
 
     # handshake ---------------------------------------------------------------------------
     def _expect(self, want: bytes, step: str) -> None:
-        """Read messages until ``want``; frames that arrive before or after it are kept,
-        anything else fails."""
+        """Read messages until ``want``; frames that arrive before or after it are kept.
+
+        Anything else fails the handshake.
+        """
         chunk = b""
         while True:
             bodies = self._split(chunk)
@@ -146,6 +172,13 @@ class SocketcandBus(can.BusABC):
 
     # sending -----------------------------------------------------------------------------
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        """Send ``msg``, or keep it for the next write with ``batch`` (``timeout`` is unused).
+
+        Raises
+        ------
+        can.CanOperationError
+            The write failed (or found no room in 5 s).
+        """
         line = format_send(msg)
         if self.batch:
             pending = self._pending
@@ -234,8 +267,10 @@ class SocketcandBus(can.BusABC):
             raise _receive_failed(exc) from exc
 
     def _split(self, chunk: bytes) -> list[bytes]:
-        """The bodies of the complete ``< … >`` messages in what was kept plus ``chunk``; the
-        partial rest is kept for the next read."""
+        """The bodies of the complete ``< ... >`` messages in what was kept plus ``chunk``.
+
+        The partial rest is kept for the next read.
+        """
         buf = self._partial + chunk if self._partial else chunk
         parts = buf.split(b">")
         tail = parts.pop()
@@ -271,9 +306,11 @@ class SocketcandBus(can.BusABC):
             return  # a malformed line is skipped, as python-can's client skips it
 
     def fileno(self) -> int:
+        """The socket's file descriptor (for ``select``, as python-can's notifier uses it)."""
         return self._sock.fileno()
 
     def shutdown(self) -> None:
+        """Write the frames still kept, then close the connection."""
         try:
             self.flush()
         except can.CanError:

@@ -18,6 +18,18 @@ _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_-]*$")
 
 @dataclass(frozen=True)
 class BusSpec:
+    """A parsed bus spec: ``TRANSPORT[:CHANNEL][,key=value...]``; ``str()`` gives the spec back.
+
+    Parameters
+    ----------
+    transport : str
+        The transport name, lower case (``virtual``, ``socketcan``, ``socketcand``, ``pcan``...).
+    channel : str, optional
+        What follows the first ``:`` (an interface, ``host:port/channel``, a device path).
+    options : dict, optional
+        The ``key=value`` options, values read as booleans, integers, floats or strings.
+    """
+
     transport: str
     channel: str | None = None
     options: dict[str, bool | int | float | str] = field(default_factory=dict)
@@ -44,7 +56,24 @@ def _value(text: str) -> bool | int | float | str:
 
 
 def parse_spec(spec: str) -> BusSpec:
-    """Split a spec string into transport, channel and options; errors name the bad part."""
+    """Split a spec string into transport, channel and options.
+
+    Parameters
+    ----------
+    spec : str
+        ``TRANSPORT[:CHANNEL][,key=value...]``.
+
+    Returns
+    -------
+    BusSpec
+        The parsed spec.
+
+    Raises
+    ------
+    BusSpecError
+        An empty spec, a transport that is not a name, or an option that is not ``key=value``
+        (naming the bad part).
+    """
     if not isinstance(spec, str) or not spec.strip():
         raise BusSpecError(f"empty bus spec {spec!r}; expected e.g. 'virtual', 'socketcan:vcan0' "
                            "or 'socketcand:127.0.0.1:29536/can0'")

@@ -1,5 +1,7 @@
-"""The built-in transports: in-process virtual, kernel SocketCAN, the software bus, and any
-other python-can interface."""
+"""The built-in bus transports.
+
+In-process virtual, kernel SocketCAN, the software bus, and any other python-can interface.
+"""
 
 from __future__ import annotations
 

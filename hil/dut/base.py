@@ -13,13 +13,24 @@ class DutError(HilError, RuntimeError):
 
 
 class DutSetupError(DutError):
-    """The DUT could not be started at all (its command cannot be executed): a setup error,
-    not a DUT failure."""
+    """The DUT could not be started at all (its command cannot be executed).
+
+    A setup error, not a DUT failure.
+    """
 
 
 class DutStopped(DutError):
-    """The DUT stopped during a run: it exited (any status), died of a signal, raised, or
-    stopped answering. ``what`` says how ("exited with SIGSEGV"); the runner adds when."""
+    """The DUT stopped during a run: it exited, died of a signal, raised, or went silent.
+
+    Parameters
+    ----------
+    what : str
+        How it stopped ("exited with SIGSEGV"); the runner adds when.
+    detail : str, optional
+        More about it (the end of its stderr, say).
+    at_s : float, optional
+        When it stopped (simulated time), when known better than "now".
+    """
 
     def __init__(self, what: str, *, detail: str = "", at_s: float | None = None) -> None:
         self.what = what
@@ -38,15 +49,40 @@ class DutRunner(ABC):
     def start(self, bus_spec: str, env: dict[str, str] | None = None) -> None:
         """Start the DUT connected to ``bus_spec``; return when it is on the bus.
 
-        ``env``: what the rig offers besides the bus (e.g. ``AGRIHIL_GNSS_PORT``)."""
+        Parameters
+        ----------
+        bus_spec : str
+            The bus to join (:func:`hil.bus.open_bus` spec).
+        env : dict of str to str, optional
+            What the rig offers besides the bus (e.g. ``AGRIHIL_GNSS_PORT``).
+
+        Raises
+        ------
+        DutSetupError
+            The DUT cannot be started at all.
+        DutStopped
+            It died or stayed silent while coming up.
+        """
 
     @abstractmethod
     def stop(self, timeout: float = 5.0) -> dict[str, Any]:
         """Stop the DUT (safe to call twice); returns what the record should keep of it."""
 
     def restart(self, bus_spec: str, env: dict[str, str] | None = None) -> dict[str, Any]:
-        """Stop the DUT and start it again, as a power cycle would; returns what :meth:`stop`
-        said of the run before the restart."""
+        """Stop the DUT and start it again, as a power cycle would.
+
+        Parameters
+        ----------
+        bus_spec : str
+            The bus to join again.
+        env : dict of str to str, optional
+            As for :meth:`start`.
+
+        Returns
+        -------
+        dict
+            What :meth:`stop` said of the run before the restart.
+        """
         before = self.stop()
         self.start(bus_spec, env)
         return before
@@ -56,4 +92,5 @@ class DutRunner(ABC):
         """Raise :class:`DutError` if the DUT has died."""
 
     def identity(self) -> dict[str, Any]:
+        """The DUT's identity for the record (at least its ``name``)."""
         return {"name": self.name}

@@ -34,6 +34,10 @@ SKIP_PARTS = {"build", ".git", "__pycache__"}
 
 
 def cache_root() -> Path:
+    """The build cache's directory.
+
+    ``$AGRIHIL_CACHE`` if set, else ``agrihil`` under ``$XDG_CACHE_HOME`` (default ``~/.cache``).
+    """
     explicit = os.environ.get("AGRIHIL_CACHE")
     if explicit:
         return Path(explicit)
@@ -42,6 +46,7 @@ def cache_root() -> Path:
 
 
 def profile_dir(profile: DutProfile) -> Path:
+    """The directory of the profile's file (the working directory for a profile without one)."""
     return profile.path.parent if profile.path else Path.cwd()
 
 
@@ -57,8 +62,16 @@ def source_hash(profile: DutProfile) -> str:
 
 
 def source_sha256(profile: DutProfile) -> str:
-    """SHA-256 of the build command and of every file (path and bytes) under the profile's
-    ``build.sources``, in sorted order."""
+    """SHA-256 of the build command and of every file under the profile's ``build.sources``.
+
+    Each file adds its path (relative to the project root) and its bytes, in sorted order;
+    ``build``, ``.git`` and ``__pycache__`` directories are left out.
+
+    Raises
+    ------
+    ConfigError
+        A build source does not exist.
+    """
     assert profile.build is not None
     digest = hashlib.sha256()
     digest.update("\0".join(profile.build.command).encode())
@@ -84,6 +97,28 @@ def build_dir(profile: DutProfile, digest: str | None = None) -> Path:
 
 
 def expand(arg: str, profile: DutProfile, *, bus: str = "", build: Path | None = None) -> str:
+    """``arg`` with the placeholders of a profile's command expanded.
+
+    The placeholders are ``{python}``, ``{root}``, ``{profile_dir}``, ``{bus}`` and
+    ``{build_dir}``; ``{params}`` is not expanded here: it stands for several arguments (the
+    process runner expands it).
+
+    Parameters
+    ----------
+    arg : str
+        One argument of a profile's command.
+    profile : DutProfile
+        The profile it comes from.
+    bus : str, optional
+        The bus spec for ``{bus}``.
+    build : Path, optional
+        The build cache entry for ``{build_dir}``.
+
+    Returns
+    -------
+    str
+        The argument with the placeholders replaced (an empty string for a missing bus or build).
+    """
     values = {"python": sys.executable, "root": str(PROJECT_ROOT),
               "profile_dir": str(profile_dir(profile)), "bus": bus,
               "build_dir": str(build) if build else ""}
@@ -123,8 +158,10 @@ def file_sha256(path: Path) -> str:
 
 
 def compiler_version(build: Path) -> str:
-    """First line of ``--version`` of the C (else C++) compiler CMake configured in ``build``
-    (from its ``CMakeCache.txt``); "" when there is none or it does not answer."""
+    """First line of ``--version`` of the C (else C++) compiler CMake configured in ``build``.
+
+    Read from its ``CMakeCache.txt``; "" when there is none or the compiler does not answer.
+    """
     cache = build / "CMakeCache.txt"
     if not cache.is_file():
         return ""
@@ -161,7 +198,28 @@ def _traceability(digest: str, target: Path, artifacts: list[Path]) -> dict[str,
 
 
 def ensure_built(profile: DutProfile) -> dict[str, object]:
-    """Build ``profile`` unless its cache entry is complete; returns what the record keeps."""
+    """Build ``profile`` unless its cache entry is complete; return what the record keeps.
+
+    Parameters
+    ----------
+    profile : DutProfile
+        A firmware profile (others have nothing to build).
+
+    Returns
+    -------
+    dict
+        The entry's directory, whether it was cached, the build's duration, and the
+        traceability facts (source SHA-256, artifacts with SHA-256 and size, compiler); empty for
+        a profile without ``[build]``.
+
+    Raises
+    ------
+    DutError
+        The build command cannot run, times out, fails (with the tail of its log) or does not
+        produce every artifact.
+    ConfigError
+        A build source does not exist.
+    """
     if profile.build is None:
         return {}
     digest = source_sha256(profile)

@@ -98,10 +98,22 @@ def make_dut(profile: DutProfile, *, bus: str, clock: str,
 
 def profile_run_options(profile: DutProfile, *, rig_from: DutProfile | None = None
                         ) -> dict[str, Any]:
-    """What every run of ``profile`` takes from it besides the DUT runner, as
-    :class:`hil.rig.RunOptions` fields: the flood limit, and the rig's config overrides
-    (``[rig]``) of ``rig_from`` (default: ``profile``; a baseline DUT runs on the rig of the
-    DUT it is compared with)."""
+    """What every run of ``profile`` takes from it besides the DUT runner.
+
+    Parameters
+    ----------
+    profile : DutProfile
+        The DUT to run.
+    rig_from : DutProfile, optional
+        The profile whose ``[rig]`` overrides configure the rig (default: ``profile``; a
+        baseline DUT runs on the rig of the DUT it is compared with).
+
+    Returns
+    -------
+    dict
+        :class:`hil.rig.RunOptions` fields: the rig's config overrides and their source, and
+        the flood limit (``timing.max_frames_per_period`` of ``profile``).
+    """
     rig = rig_from or profile
     return {"rig_config": dict(rig.rig_config), "rig_config_source": str(rig.path or ""),
             "max_dut_frames_per_period": profile.timing.max_frames_per_period}

@@ -38,6 +38,17 @@ class Controller(ABC):
 
 
 class InProcessDut(DutRunner):
+    """Runs a :class:`Controller` in the rig's process: in a thread with its own bus, or inline.
+
+    Parameters
+    ----------
+    controller : Controller
+        The controller under test.
+    factory : callable, optional
+        Builds a fresh controller for :meth:`restart` (its state is lost, as on power-up);
+        without one the DUT cannot restart.
+    """
+
     def __init__(self, controller: Controller,
                  factory: Callable[[], Controller] | None = None) -> None:
         self.controller = controller
@@ -55,8 +66,11 @@ class InProcessDut(DutRunner):
         self._inline = False
 
     def _stopped(self, exc: BaseException) -> DutStopped:
-        """What the run reports of a controller that raised: any exception, ``SystemExit``
-        (``sys.exit(0)`` too) included: a controller has no business ending the process."""
+        """What the run reports of a controller that raised.
+
+        Any exception counts, ``SystemExit`` (``sys.exit(0)`` too) included: a controller has no
+        business ending the process.
+        """
         self._failure = exc
         what = (f"exited (SystemExit({exc.code!r}) in-process)" if isinstance(exc, SystemExit)
                 else f"raised {type(exc).__name__}: {exc}")
@@ -81,7 +95,24 @@ class InProcessDut(DutRunner):
         return bus
 
     def restart(self, bus_spec: str, env: dict[str, str] | None = None) -> dict[str, Any]:
-        """A fresh controller from :attr:`factory` (on the inline bus: no thread to stop)."""
+        """Replace the controller with a fresh one from :attr:`factory`.
+
+        On the inline bus there is no thread to stop: the new controller's start-up frames are
+        injected at once.
+
+        Returns
+        -------
+        dict
+            What :meth:`stop` said of the run before the restart (inline: the name, kind and the
+            number of restarts).
+
+        Raises
+        ------
+        DutError
+            The DUT was built without a factory.
+        DutStopped
+            The factory or the new controller's start-up raised.
+        """
         if self.factory is None:
             raise DutError(f"in-process controller {self.name!r} cannot restart: it was "
                            f"built without a factory")
@@ -111,6 +142,20 @@ class InProcessDut(DutRunner):
         return out
 
     def start(self, bus_spec: str, env: dict[str, str] | None = None) -> None:
+        """Configure the controller, join the bus, send its start-up frames and start its thread.
+
+        Parameters
+        ----------
+        bus_spec : str
+            The bus to join.
+        env : dict of str to str, optional
+            What the rig offers besides the bus.
+
+        Raises
+        ------
+        DutStopped
+            The controller raised while configuring or starting.
+        """
         self._guarded(lambda: self.controller.configure(env or {}))
         self._bus = open_bus(bus_spec)
         for msg in self._guarded(self.controller.on_start):
@@ -133,10 +178,23 @@ class InProcessDut(DutRunner):
             self._failure = exc
 
     def check(self) -> None:
+        """Raise :class:`~hil.dut.base.DutStopped` if the controller has raised."""
         if self._failure is not None:
             raise self._stopped(self._failure) from self._failure
 
     def stop(self, timeout: float = 5.0) -> dict[str, Any]:
+        """Stop the thread and leave the bus; return frame counts and any failure for the record.
+
+        Parameters
+        ----------
+        timeout : float, optional
+            How long to wait for the thread, in seconds; a thread still alive is reported ``hung``.
+
+        Returns
+        -------
+        dict
+            Name, kind, restarts, frames in and out, whether it hung, and its failure (or None).
+        """
         self._stop.set()
         alive = False
         if self._thread is not None:

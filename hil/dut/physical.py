@@ -119,6 +119,20 @@ class PhysicalDut(DutRunner):
         return found
 
     def start(self, bus_spec: str, env: dict[str, str] | None = None) -> None:
+        """Wait for the ECU's heartbeat (any NMT state), up to its ``launch.ready_timeout_s``.
+
+        Parameters
+        ----------
+        bus_spec : str
+            The bus the ECU is on.
+        env : dict of str to str, optional
+            Unused: the ECU is not started by the rig.
+
+        Raises
+        ------
+        PhysicalDutSetupError
+            No heartbeat within the timeout (naming the bus, the frame id and the endpoints file).
+        """
         heartbeat = self.profile.wiring.heartbeat_id
         timeout = self.profile.launch.ready_timeout_s
         bus = open_bus(bus_spec)
@@ -137,12 +151,21 @@ class PhysicalDut(DutRunner):
             f"{timeout:g} s: is it powered, wired to this bus and at its bit rate?{where}")
 
     def restart(self, bus_spec: str, env: dict[str, str] | None = None) -> dict[str, Any]:
+        """Refuse: the rig cannot power-cycle a physical ECU.
+
+        Raises
+        ------
+        DutError
+            Always.
+        """
         raise DutError("the rig cannot power-cycle a physical ECU (it does not start it)")
 
     def check(self) -> None:
+        """Nothing to check: the rig does not run the ECU (the bus shows what it does)."""
         return None
 
     def stop(self, timeout: float = 5.0) -> dict[str, Any]:
+        """Nothing to stop; return what the record keeps: the NMT state seen, the endpoints file."""
         found: dict[str, Any] = {"name": self.name, "kind": "physical",
                                  "nmt_state_at_start": self.seen_state}
         if self.endpoints_path is not None:
@@ -150,4 +173,5 @@ class PhysicalDut(DutRunner):
         return found
 
     def identity(self) -> dict[str, Any]:
+        """The profile's identity of the DUT (:meth:`DutProfile.identity`)."""
         return self.profile.identity()

@@ -52,6 +52,7 @@ def _tail(path: Path | None) -> str:
 
 
 def param_args(profile: DutProfile) -> list[str]:
+    """The profile's parameters as arguments, ``--param key=value`` each (booleans true/false)."""
     out: list[str] = []
     for key, value in profile.parameters.items():
         text = ("true" if value else "false") if isinstance(value, bool) else str(value)
@@ -74,6 +75,20 @@ def command_line(profile: DutProfile, *, bus: str, clock: str,
 
 
 class ProcessDut(DutRunner):
+    """Runs a DUT as its own process (a firmware host build or a Python daemon).
+
+    Parameters
+    ----------
+    profile : DutProfile
+        The DUT's profile (its ``[launch]`` says how to start it and when it is ready).
+    clock : str
+        The run's clock; it picks ``lockstep_args`` or ``realtime_args``.
+    log_dir : Path, optional
+        Where ``dut.stdout.log`` and ``dut.stderr.log`` go (default: a temporary directory).
+    build : Path, optional
+        The build cache entry (``{build_dir}``) of a firmware DUT.
+    """
+
     def __init__(self, profile: DutProfile, *, clock: str, log_dir: Path | None = None,
                  build: Path | None = None) -> None:
         self.profile = profile
@@ -94,6 +109,23 @@ class ProcessDut(DutRunner):
 
     # --- start --------------------------------------------------------------------------------
     def start(self, bus_spec: str, env: dict[str, str] | None = None) -> None:
+        """Start the process and return when it is ready (boot-up frame, stdout line or delay).
+
+        Parameters
+        ----------
+        bus_spec : str
+            The bus it joins (``{bus}`` and ``AGRIHIL_BUS``).
+        env : dict of str to str, optional
+            More environment from the rig (e.g. ``AGRIHIL_GNSS_PORT``).
+
+        Raises
+        ------
+        DutSetupError
+            The command cannot be executed.
+        DutStopped
+            It exited during start-up or was not ready within ``launch.ready_timeout_s`` (with the
+            tail of its stderr); the process group is stopped.
+        """
         launch = self.profile.launch
         # a restart (DutRunner.restart: stop, then start): stop() reports the new process,
         # whose output goes to its own files (dut.stdout.log, then dut.stdout.1.log, ...)
@@ -190,12 +222,37 @@ class ProcessDut(DutRunner):
 
     # --- health -------------------------------------------------------------------------------
     def check(self) -> None:
+        """Raise if the process has exited.
+
+        Raises
+        ------
+        DutStopped
+            It exited (with its exit status or signal, and the tail of its stderr).
+        DutError
+            It was never started.
+        """
         if self.proc is None:
             raise DutError(f"DUT {self.name!r} was never started")
         self._raise_if_exited("")
 
     # --- stop ---------------------------------------------------------------------------------
     def stop(self, timeout: float | None = None) -> dict[str, Any]:
+        """Stop the process group (SIGTERM, SIGKILL after the grace time) and escaped descendants.
+
+        Safe to call twice (the second call returns the first's result).
+
+        Parameters
+        ----------
+        timeout : float, optional
+            The grace time after SIGTERM, in seconds (default: ``launch.stop_timeout_s``).
+
+        Returns
+        -------
+        dict
+            What the record keeps: argv, starts, start-up time, pid, exit status, whether it
+            exited before the stop or ignored SIGTERM, descendants killed, the log files and their
+            tails.
+        """
         if self._result is not None and self.proc is None:
             return self._result
         grace = self.profile.launch.stop_timeout_s if timeout is None else timeout
@@ -243,4 +300,5 @@ class ProcessDut(DutRunner):
         return result
 
     def identity(self) -> dict[str, Any]:
+        """The profile's identity of the DUT (:meth:`DutProfile.identity`)."""
         return self.profile.identity()

@@ -48,6 +48,32 @@ PLACEHOLDERS = ("python", "root", "profile_dir", "build_dir", "bus", "params")
 
 @dataclass(frozen=True)
 class Identity:
+    """The profile's ``[dut]`` table: who the DUT is and which rig it drives.
+
+    Parameters
+    ----------
+    name : str
+        Lower-case words joined by ``-``; the profile's file name without ``.toml``.
+    version : str
+        The controller's version.
+    kind : {"firmware", "daemon", "inprocess", "physical"}
+        How the rig runs it: a built firmware process, a process, a Python object in the rig's
+        process, or an ECU on a physical bus the rig does not start.
+    rig : str
+        The rig it is wired to.
+    controller : str
+        The controller's name.
+    build_id : str, optional
+        The build under test (a CI job's commit, say).
+    description : str, optional
+        One line about it.
+
+    Raises
+    ------
+    ValueError
+        The name is not lower-case words joined by ``-``.
+    """
+
     name: str
     version: str
     kind: Kind
@@ -63,6 +89,20 @@ class Identity:
 
 @dataclass(frozen=True)
 class Build:
+    """The profile's ``[build]`` table (firmware only): how the DUT is built.
+
+    Parameters
+    ----------
+    command : tuple of str
+        The build command (argv, placeholders expanded), not empty.
+    sources : tuple of str, optional
+        Paths hashed into the build cache key.
+    artifacts : tuple of str, optional
+        Paths the build must produce.
+    timeout_s : float, optional
+        How long the build may take, > 0.
+    """
+
     command: tuple[str, ...]
     sources: tuple[str, ...] = ()
     artifacts: tuple[str, ...] = ()
@@ -76,15 +116,40 @@ class Build:
 
 @dataclass(frozen=True)
 class Launch:
+    """The profile's ``[launch]`` table: how the DUT is started and when it is ready.
+
+    Parameters
+    ----------
+    command : tuple of str, optional
+        The command of a process DUT (argv, placeholders expanded).
+    lockstep_args, realtime_args : tuple of str, optional
+        Arguments added under each clock.
+    env : dict of str to str, optional
+        Environment variables of the process.
+    inprocess : str, optional
+        ``"module:factory"`` (or a class) building the same controller in-process from the
+        parameters as keyword arguments (lockstep on the inline bus).
+    ready : str, optional
+        How the rig knows the DUT is on the bus: its CANopen boot-up frame (``"bootup"``), a
+        line on its stdout (``"stdout:<text>"``), or a fixed delay (``"delay"``).
+    ready_timeout_s : float, optional
+        How long the rig waits for it to be ready, > 0.
+    ready_delay_s : float, optional
+        The delay of ``ready = "delay"``.
+    stop_timeout_s : float, optional
+        How long a stop waits for the process to exit, > 0.
+
+    Raises
+    ------
+    ValueError
+        A bad ``ready``, an unknown placeholder, a bad ``inprocess`` or a non-positive timeout.
+    """
+
     command: tuple[str, ...] = ()
     lockstep_args: tuple[str, ...] = ()
     realtime_args: tuple[str, ...] = ()
     env: dict[str, str] = field(default_factory=dict)
-    #: "module:factory" (or a class) building the same controller in-process from the
-    #: parameters as keyword arguments (lockstep on the inline bus)
     inprocess: str = ""
-    #: how the rig knows the DUT is on the bus: its CANopen boot-up frame, a line on its
-    #: stdout ("stdout:<text>"), or a fixed delay ("delay")
     ready: str = "bootup"
     ready_timeout_s: float = 10.0
     ready_delay_s: float = 0.5
@@ -106,8 +171,24 @@ class Launch:
 
 @dataclass(frozen=True)
 class Wiring:
+    """The profile's ``[wiring]`` table: how the DUT sits on the bus.
+
+    Parameters
+    ----------
+    node_id : int
+        Its CANopen node id, 1-127.
+    command_ids : tuple of int, optional
+        Frames the rig waits for after each SYNC in lockstep (empty: the rig's own choice).
+    database : str, optional
+        Its CAN database (DBC), absolute or relative to the project root or the profile.
+
+    Raises
+    ------
+    ValueError
+        A node id out of range or a command id that is not a CAN identifier.
+    """
+
     node_id: int
-    #: frames the rig waits for after each SYNC in lockstep (empty: the rig's own choice)
     command_ids: tuple[int, ...] = ()
     database: str = ""
 
@@ -120,14 +201,26 @@ class Wiring:
 
     @property
     def heartbeat_id(self) -> int:
+        """The COB-ID of the DUT's heartbeat: 0x700 + node id."""
         return 0x700 + self.node_id
 
 
 @dataclass(frozen=True)
 class Timing:
+    """The profile's ``[timing]`` table.
+
+    Parameters
+    ----------
+    control_period_ms : float
+        The period the DUT is stepped at; must equal the rig's SYNC period.
+    heartbeat_period_ms : float, optional
+        The DUT's heartbeat period.
+    max_frames_per_period : int, optional
+        More frames than this from the DUT in one control period is a flood (a fault).
+    """
+
     control_period_ms: float
     heartbeat_period_ms: float = 100.0
-    #: more frames than this from the DUT in one control period is a flood (a fault)
     max_frames_per_period: int = 50
 
     def __post_init__(self) -> None:
@@ -137,10 +230,24 @@ class Timing:
 
 @dataclass(frozen=True)
 class Limit:
+    """One entry of the profile's ``[limits]``: the band a measurement must fall in.
+
+    Parameters
+    ----------
+    low, high : float, optional
+        The limits, in the measurement's unit; at least one, ``low <= high``.
+    marginal : float, optional
+        A pass closer than this to a limit is flagged marginal (in the measurement's unit;
+        default: 5 % of the span for two-sided limits, 1 % of the limit for one-sided ones).
+
+    Raises
+    ------
+    ValueError
+        Neither limit given, ``low`` above ``high``, or a negative ``marginal``.
+    """
+
     low: float | None = None
     high: float | None = None
-    #: a pass closer than this to a limit is flagged marginal (in the measurement's unit;
-    #: default: 5 % of the span for two-sided limits, 1 % of the limit for one-sided ones)
     marginal: float | None = None
 
     def __post_init__(self) -> None:
@@ -154,8 +261,11 @@ class Limit:
 
 @dataclass(frozen=True)
 class CampaignRequirement:
-    """``[campaign]``: the pass probability a campaign must demonstrate, at what confidence
-    (its exact lower confidence bound must reach ``pass_probability``)."""
+    """``[campaign]``: the pass probability a campaign must demonstrate.
+
+    The campaign passes when the exact (Clopper-Pearson) lower bound of its pass rate, at
+    ``confidence``, reaches ``pass_probability``.
+    """
 
     pass_probability: float
     confidence: float = 0.95
@@ -169,6 +279,35 @@ class CampaignRequirement:
 
 @dataclass(frozen=True)
 class DutProfile:
+    """A validated DUT profile: one controller under test, as :func:`load_profile` reads it.
+
+    Parameters
+    ----------
+    dut : Identity
+        ``[dut]``.
+    wiring : Wiring
+        ``[wiring]``.
+    timing : Timing
+        ``[timing]``.
+    launch : Launch, optional
+        ``[launch]``.
+    build : Build, optional
+        ``[build]`` (firmware only).
+    parameters : dict, optional
+        ``[parameters]``, handed to the controller.
+    limits : dict of str to Limit, optional
+        ``[limits]`` by measurement name.
+    rig_config : dict, optional
+        ``[rig]``: overrides of the rig's packaged config for this DUT's wiring (e.g. which
+        flow-sensor modules it is wired to), checked by the rig's own config loader.
+    campaign : CampaignRequirement, optional
+        ``[campaign]``: what ``hil campaign`` must demonstrate (None: no sample may fail).
+    path : Path, optional
+        The profile file (set by :func:`load_profile`).
+    sha256 : str, optional
+        The file's SHA-256 (set by :func:`load_profile`).
+    """
+
     dut: Identity
     wiring: Wiring
     timing: Timing
@@ -176,23 +315,22 @@ class DutProfile:
     build: Build | None = None
     parameters: dict[str, float | int | bool | str] = field(default_factory=dict)
     limits: dict[str, Limit] = field(default_factory=dict)
-    #: ``[rig]``: overrides of the rig's packaged config for this DUT's wiring (e.g. which
-    #: flow-sensor modules it is wired to), checked by the rig's own config loader
     rig_config: dict[str, Any] = field(default_factory=dict)
-    #: ``[campaign]``: the requirement of ``hil campaign`` (None: no sample may fail)
     campaign: CampaignRequirement | None = None
-    #: set by :func:`load_profile`
     path: Path | None = None
     sha256: str = ""
 
     @property
     def name(self) -> str:
+        """The DUT's name (``[dut] name``)."""
         return self.dut.name
 
     def limit(self, measurement: str) -> Limit | None:
+        """The profile's limit for ``measurement``, or None if it sets none."""
         return self.limits.get(measurement)
 
     def identity(self) -> dict[str, str]:
+        """The DUT's identity for the record: name, version, build, kind, rig, profile and hash."""
         return {"name": self.dut.name, "version": self.dut.version,
                 "build_id": self.dut.build_id, "kind": self.dut.kind, "rig": self.dut.rig,
                 "controller": self.dut.controller,
@@ -200,7 +338,25 @@ class DutProfile:
 
 
 def load_profile(path: str | Path) -> DutProfile:
-    """Read and validate a DUT profile; raises :class:`ConfigError` naming file and key."""
+    """Read and validate a DUT profile.
+
+    Parameters
+    ----------
+    path : str or Path
+        The profile (TOML).
+
+    Returns
+    -------
+    DutProfile
+        The profile, with its path and the file's SHA-256.
+
+    Raises
+    ------
+    ConfigError
+        The file is missing or unreadable, not TOML, or a key is unknown, missing or invalid,
+        including a ``[rig]`` override the rig refuses, a control period other than the rig's and
+        an unreadable CAN database (naming the file and the key).
+    """
     path = Path(path)
     try:
         raw = path.read_bytes()
@@ -231,8 +387,23 @@ def load_profile(path: str | Path) -> DutProfile:
 
 
 def database_path(database: str, profile_path: Path | None) -> Path:
-    """Where ``wiring.database`` points: absolute, or relative to the project root (as the
-    shipped profiles write it), else to the profile's own directory."""
+    """Where ``wiring.database`` points.
+
+    Absolute, or relative to the project root (as the shipped profiles write it), else to the
+    profile's own directory.
+
+    Parameters
+    ----------
+    database : str
+        The profile's ``wiring.database``.
+    profile_path : Path or None
+        The profile file.
+
+    Returns
+    -------
+    Path
+        The database file (which may not exist).
+    """
     p = Path(database)
     if p.is_absolute():
         return p
@@ -247,8 +418,10 @@ def database_path(database: str, profile_path: Path | None) -> Path:
 
 @functools.lru_cache(maxsize=32)
 def _database_ids(path: str, mtime_ns: int, size: int) -> frozenset[int]:
-    """The frame ids a CAN database declares (cached per file version); raises ValueError
-    (or cantools' own errors) when the file is not a database."""
+    """The frame ids a CAN database declares (cached per file version).
+
+    Raises ValueError (or cantools' own errors) when the file is not a database.
+    """
     import cantools
 
     db = cantools.database.load_file(path, strict=False)
@@ -261,7 +434,8 @@ def _check_database(profile: DutProfile, path: Path) -> None:
     """``wiring.database`` must be a readable CAN database that declares frames.
 
     (Not every command id is checked against it: the depth rig's drive takes its controlword
-    in RPDO 0x202, a CANopen frame its DBC does not list today.)"""
+    in RPDO 0x202, a CANopen frame its DBC does not list today.)
+    """
     database = profile.wiring.database
     if not database:
         return
@@ -287,8 +461,23 @@ def _check_database(profile: DutProfile, path: Path) -> None:
 
 def rig_control_period_ms(rig: str, overrides: dict[str, Any] | None = None,
                           source: str = "") -> tuple[float, bool]:
-    """The rig's control period (its SYNC period) in ms with the profile's ``[rig]`` overrides,
-    and whether the rig's config sets it (``[rig] wiring.sync_period_ms``)."""
+    """The rig's control period (its SYNC period) in ms, with the profile's ``[rig]`` overrides.
+
+    Parameters
+    ----------
+    rig : str
+        The rig's name.
+    overrides : dict, optional
+        The profile's ``[rig]`` table.
+    source : str, optional
+        Where the overrides come from, named in errors.
+
+    Returns
+    -------
+    tuple of (float, bool)
+        The period in ms, and whether the rig's config sets it
+        (``[rig] wiring.sync_period_ms``).
+    """
     from hil.rig.registry import load_rig
 
     rig_cls = load_rig(rig)

@@ -73,8 +73,15 @@ def target_mass(t: np.ndarray, target_flow_gps: np.ndarray, t_start: float, t_en
 
 def delivered_mass(t: np.ndarray, cumulative_g: np.ndarray, t_start: float,
                    t_end: float) -> float | np.ndarray:
-    """M2 (g): ``cum(t_end) - cum(t_start)`` of a cumulative-grams truth trace ((n,) or
-    (n, rows)), linearly interpolated at the window edges."""
+    """M2 (g): ``cum(t_end) - cum(t_start)`` of a cumulative-grams truth trace.
+
+    The trace is (n,) or (n, rows), linearly interpolated at the window edges.
+
+    Raises
+    ------
+    ValueError
+        The trace's shape does not match ``t``, or the window is empty.
+    """
     t = as_time(t)
     c = np.asarray(cumulative_g, dtype=float)
     if c.shape[:1] != t.shape or c.ndim > 2:
@@ -89,6 +96,22 @@ def delivered_mass(t: np.ndarray, cumulative_g: np.ndarray, t_start: float,
 
 @dataclass(frozen=True)
 class RowAccuracy(DictMixin):
+    """θ of one row over a window (one entry of :attr:`AccuracyResult.rows`).
+
+    Parameters
+    ----------
+    row : int
+        The row's index, from 0.
+    target_mass_g : float
+        M1: the row's target mass over the window.
+    delivered_mass_g : float
+        M2: the row's delivered (true) mass over the window.
+    theta_pct : float
+        θ, [F] eq. 15.
+    bias_pct : float
+        ``(M2 - M1) / M1 · 100``.
+    """
+
     row: int
     target_mass_g: float
     delivered_mass_g: float
@@ -121,10 +144,35 @@ def flow_accuracy(t: np.ndarray, target_flow_gps: np.ndarray, cumulative_g: np.n
                   row_weights: np.ndarray | None = None) -> AccuracyResult:
     """[F] eq. 15 over ``[t_start, t_end]``, per row and total.
 
-    ``target_flow_gps``: (n,) total target flow, or (n, rows) per row, sampled at ``t``.
-    ``cumulative_g``: (m,) total or (m, rows) per-row delivered grams at ``t_truth`` (default
-    ``t``). A total target is split over the rows by ``row_weights`` (default equal: [F]'s four
-    identical rows). With a 1-D truth only the total is reported.
+    The total θ is computed from the summed masses; with a 1-D truth only the total is reported.
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        Sample times of the target flow, in s.
+    target_flow_gps : numpy.ndarray
+        (n,) total target flow, or (n, rows) per row, in g/s, sampled at ``t``.
+    cumulative_g : numpy.ndarray
+        (m,) total or (m, rows) per-row delivered grams at ``t_truth``.
+    t_start, t_end : float
+        The window, in s.
+    t_truth : numpy.ndarray, optional
+        Sample times of ``cumulative_g`` (default ``t``).
+    interp : {"linear", "previous"}, optional
+        How the target flow is integrated (:func:`integrate_trace`).
+    row_weights : numpy.ndarray, optional
+        How a total target is split over the rows (default equal: [F]'s four identical rows).
+
+    Returns
+    -------
+    AccuracyResult
+        θ and bias, total and per row, with the masses.
+
+    Raises
+    ------
+    ValueError
+        Shapes that do not match, an empty window, bad row weights, or per-row targets with a
+        total truth.
     """
     t_truth = t if t_truth is None else t_truth
     m1 = target_mass(t, target_flow_gps, t_start, t_end, interp=interp)

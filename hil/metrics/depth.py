@@ -81,8 +81,25 @@ def depth_statistics(samples_mm: np.ndarray, target_mm: float = 30.0, *,
                      band_mm: tuple[float, float] | None = None) -> DepthStats:
     """Statistics of depth samples (any shape; 2-D is read as rows x points).
 
-    ``band_mm`` overrides the GB/T 20865 band (inclusive edges). Non-finite samples raise
-    ``ValueError`` (a missing measurement point must be dealt with by the caller).
+    Parameters
+    ----------
+    samples_mm : numpy.ndarray
+        The sampled depths, all finite (a missing measurement point must be dealt with by the
+        caller).
+    target_mm : float, optional
+        The target depth.
+    band_mm : tuple of (float, float), optional
+        Overrides the GB/T 20865 qualified band (inclusive edges).
+
+    Returns
+    -------
+    DepthStats
+        Overall statistics and those over the qualified samples.
+
+    Raises
+    ------
+    ValueError
+        No samples, non-finite samples, or an empty band.
     """
     x = np.asarray(samples_mm, dtype=float)
     if x.size == 0:
@@ -124,11 +141,38 @@ def sample_depth(positions_m: np.ndarray, depth_mm: np.ndarray, *, points: int =
                  ) -> DepthSample:
     """Sample ``points`` depths per row from a truth array ``depth_mm[rows, cells]``.
 
-    ``positions_m`` (cells,) are the cells' positions along the travel (strictly increasing).
-    The sampled stretch is ``[positions_m[0] + headland_m, positions_m[-1] - headland_m]``,
-    cut into ``points`` equal segments; each point sits at its segment's centre, moved by up
-    to ``± jitter / 2`` of a segment when ``jitter > 0`` (uniform, from ``seed``). Each point
-    takes the nearest cell's depth. ``rows`` selects truth rows (default: all).
+    The sampled stretch is ``[positions_m[0] + headland_m, positions_m[-1] - headland_m]``, cut
+    into ``points`` equal segments; each point sits at its segment's centre, moved by up to
+    ``± jitter / 2`` of a segment when ``jitter > 0`` (uniform, from ``seed``). Each point takes
+    the nearest cell's depth.
+
+    Parameters
+    ----------
+    positions_m : numpy.ndarray
+        (cells,) the cells' positions along the travel, strictly increasing.
+    depth_mm : numpy.ndarray
+        (rows, cells) the true depth.
+    points : int, optional
+        Points per row, >= 1.
+    headland_m : float, optional
+        The stretch left out at each end.
+    rows : sequence of int, optional
+        The truth rows to sample (default: all).
+    jitter : float, optional
+        How far a point may move from its segment's centre, a fraction of the spacing in [0, 1].
+    seed : int or numpy.random.Generator, optional
+        The jitter's random source.
+
+    Returns
+    -------
+    DepthSample
+        The points' positions and depths, (rows, points).
+
+    Raises
+    ------
+    ValueError
+        Shapes that do not match, no points, a jitter out of range, headlands that leave nothing,
+        or rows that do not exist.
     """
     pos = as_time(positions_m, "positions_m")
     depth = np.asarray(depth_mm, dtype=float)

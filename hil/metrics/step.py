@@ -1,5 +1,7 @@
-"""Step-response metrics of a *measured* signal: response, rise and settling time, overshoot,
-steady-state error, as [F] reports them for its flow steps (and the suites for depth steps).
+"""Step-response metrics of a *measured* signal, as [F] reports them for its flow steps.
+
+Response, rise and settling time, overshoot and steady-state error (the suites report the
+same for depth steps).
 
 The setpoint steps at ``t0`` from ``y0`` to ``target``; ``step = target - y0`` (either sign).
 Definitions (all times are measured from ``t0``; all bands are fractions of ``|step|``):
@@ -140,8 +142,10 @@ def _filter_length(t: np.ndarray, filter_s: float) -> int:
 
 
 def _enter_and_stay(ts: np.ndarray, d: np.ndarray, step: float, band: float) -> float:
-    """First sample time from which ``|d/step - 1| < band`` holds to the end (step_info's rule:
-    a sample exactly on the band edge counts as outside); ``nan`` if the last sample is out."""
+    """First sample time from which ``abs(d/step - 1) < band`` holds to the end (nan: never).
+
+    step_info's rule: a sample exactly on the band edge counts as outside.
+    """
     outside = np.nonzero(np.abs(d / step - 1.0) >= band)[0]
     settled = 0 if outside.size == 0 else int(outside[-1]) + 1
     return float(ts[settled]) if settled < ts.size else math.nan
@@ -155,11 +159,50 @@ def step_response(t: np.ndarray, y: np.ndarray, *, t0: float, target: float,
                   t_end: float | None = None, pre_window_s: float = 1.0) -> StepMetrics:
     """Step-response metrics of ``y(t)`` for a setpoint step at ``t0`` to ``target``.
 
-    ``y0`` is the level the step starts from; ``None`` takes the median of the raw samples in
-    ``[t0 - pre_window_s, t0)`` (or the first sample at/after ``t0`` if there are none). The
-    window runs from ``t0`` to ``t_end`` (default: the last sample). Caller errors (shapes,
-    a zero step, a window without samples) raise ``ValueError``; a signal that does not do
-    what a metric needs gives ``nan`` for that metric and a reason in ``notes``.
+    The definitions are in the module docstring (:mod:`hil.metrics.step`). A signal that does not
+    do what a metric needs gives nan for that metric and a reason in ``notes``.
+
+    Parameters
+    ----------
+    t, y : numpy.ndarray
+        The measured signal's samples, same shape; non-finite samples are dropped.
+    t0 : float
+        When the setpoint stepped.
+    target : float
+        The setpoint after the step.
+    y0 : float, optional
+        The level the step starts from; None takes the median of the raw samples in
+        ``[t0 - pre_window_s, t0)`` (or the first sample at or after ``t0`` if there are none).
+    band : float, optional
+        The response-time band, a fraction of ``abs(step)`` in (0, 1).
+    settling_band : float, optional
+        The settling-time band, a fraction of ``abs(step)`` in (0, 1).
+    rise_limits : tuple of (float, float), optional
+        The rise time's start and end, fractions of the step, ``0 <= low < high <= 1``.
+    steady_window_s : float, optional
+        The steady-state error is the mean over this last part of the window.
+    min_hold_s : float, optional
+        How long the signal must have been in the band before the end for a response or
+        settling time.
+    filter_kind : {"median", "mean", "none"}, optional
+        The smoothing applied before the band, rise and peak tests.
+    filter_s : float, optional
+        The smoothing window, in s.
+    t_end : float, optional
+        The end of the window (default: the last sample).
+    pre_window_s : float, optional
+        The stretch before ``t0`` that ``y0`` is taken from.
+
+    Returns
+    -------
+    StepMetrics
+        The metrics, with the notes.
+
+    Raises
+    ------
+    ValueError
+        Mismatched shapes, bands or rise limits out of range, fewer than 2 samples in the window,
+        or a zero step.
     """
     t = as_time(t)
     y = np.asarray(y, dtype=float)
@@ -286,10 +329,39 @@ def step_response(t: np.ndarray, y: np.ndarray, *, t0: float, target: float,
 def recovery_time(t: np.ndarray, y: np.ndarray, *, t0: float, target: float,
                   band: float = 0.05, min_hold_s: float = 1.0,
                   filter_kind: FilterKind = "mean", filter_s: float = 1.0) -> float:
-    """Time from a disturbance at ``t0`` (a DUT restart, a fault cleared) until the filtered
-    signal is within ``band`` of ``target`` (a fraction of the target, not of a step: there
-    is no step) and stays there to the end: ``0`` when it never left, ``nan`` when it is out
-    of the band at the end or has been back for less than ``min_hold_s``.
+    """Time from a disturbance at ``t0`` until the filtered signal is back near ``target`` to stay.
+
+    A disturbance is a DUT restart or a fault cleared. "Near" is within ``band`` of ``target``
+    (a fraction of the target, not of a step: there is no step), up to the end of the record.
+
+    Parameters
+    ----------
+    t, y : numpy.ndarray
+        The signal's samples, same shape.
+    t0 : float
+        When the disturbance happened.
+    target : float
+        The level the signal should return to, not 0.
+    band : float, optional
+        The band as a fraction of ``target``, in (0, 1).
+    min_hold_s : float, optional
+        How long it must have been back before the end of the record to count.
+    filter_kind : {"mean", "median", "none"}, optional
+        The smoothing applied before the band is checked.
+    filter_s : float, optional
+        The smoothing window, in seconds.
+
+    Returns
+    -------
+    float
+        Seconds after ``t0``: 0 when it never left, nan when it is out of the band at the end or
+        has been back for less than ``min_hold_s``.
+
+    Raises
+    ------
+    ValueError
+        Mismatched shapes, a zero target, a band outside (0, 1), or fewer than 2 samples after
+        ``t0``.
     """
     t = as_time(t)
     y = np.asarray(y, dtype=float)
@@ -311,12 +383,28 @@ def recovery_time(t: np.ndarray, y: np.ndarray, *, t0: float, target: float,
 
 def judged_recovery(value: float, t: np.ndarray, *, t0: float, band: float = 0.05,
                     min_hold_s: float = 1.0) -> tuple[float, str]:
-    """A recovery time made fit to judge: ``(value, "")`` when it was timed, else the length
-    of the record after ``t0`` (a lower bound of the recovery time: a limit below it fails)
-    and the reason, "never re-entered the ±5 % band within N s".
+    """A recovery time made fit to judge: ``(value, "")`` when it was timed, else a bound and why.
 
-    A signal that never comes back has failed its recovery; it is not a measurement that
-    could not be made (that is for a run that ended early, which the suites mark apart).
+    The bound is the length of the record after ``t0`` (a lower bound of the recovery time: a
+    limit below it fails); the reason reads "never re-entered the ±5 % band within N s". A
+    signal that never comes back has failed its recovery; it is not a measurement that could
+    not be made (that is for a run that ended early, which the suites mark apart).
+
+    Parameters
+    ----------
+    value : float
+        What :func:`recovery_time` returned.
+    t : numpy.ndarray
+        The record's sample times.
+    t0 : float
+        When the disturbance happened.
+    band, min_hold_s : float, optional
+        As given to :func:`recovery_time` (named in the reason).
+
+    Returns
+    -------
+    tuple of (float, str)
+        The value to judge and the note (empty when it was timed).
     """
     if not math.isnan(value):
         return value, ""

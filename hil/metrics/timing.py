@@ -75,8 +75,11 @@ def timing_summary(health: Mapping[str, Any] | Any) -> TimingSummary:
 
 
 def _rebin(edges: np.ndarray, counts: np.ndarray, union: np.ndarray) -> np.ndarray:
-    """Counts of bins ``edges`` moved onto ``union`` (a superset of ``edges``), each into the
-    union bin ending at the source bin's upper edge (conservative: never earlier)."""
+    """Counts of bins ``edges`` moved onto ``union`` (a superset of ``edges``).
+
+    Each goes into the union bin ending at the source bin's upper edge (conservative: never
+    earlier).
+    """
     out = np.zeros(union.size - 1, dtype=np.int64)
     upper = np.searchsorted(union, edges[1:])          # exact: edges are members of union
     np.add.at(out, upper - 1, counts)
@@ -85,7 +88,25 @@ def _rebin(edges: np.ndarray, counts: np.ndarray, union: np.ndarray) -> np.ndarr
 
 def merge_timing(healths: Sequence[Mapping[str, Any] | Any], *,
                  labels: Sequence[str] | None = None) -> TimingSummary:
-    """Worst-case merge of several runs' timing health (see the module docstring)."""
+    """Worst-case merge of several runs' timing health (see the module docstring).
+
+    Parameters
+    ----------
+    healths : sequence
+        Each run's ``TimingHealth`` (object or dict).
+    labels : sequence of str, optional
+        The runs' names in the reasons of invalid timing (default ``run 0``, ``run 1``, ...).
+
+    Returns
+    -------
+    TimingSummary
+        The worst case over the runs, in µs.
+
+    Raises
+    ------
+    ValueError
+        No runs, or not one label per run.
+    """
     records = [_as_mapping(h) for h in healths]
     if not records:
         raise ValueError("no timing health to summarise")

@@ -56,9 +56,32 @@ def tracking_error(t: np.ndarray, target: np.ndarray, measured: np.ndarray, *,
                    unit: str = "g/s") -> TrackingStats:
     """Error statistics of ``measured(t)`` against ``target`` over ``[t_start, t_end]``.
 
-    ``target`` is sampled at ``t`` unless ``t_target`` is given, in which case it is
-    interpolated at ``t`` (``interp="previous"`` for a setpoint log held between changes).
-    The window defaults to the whole of ``t``; it must hold at least one finite sample.
+    Parameters
+    ----------
+    t : numpy.ndarray
+        Sample times of ``measured``.
+    target : numpy.ndarray
+        The target, sampled at ``t`` unless ``t_target`` is given.
+    measured : numpy.ndarray
+        The measured signal, sampled at ``t``.
+    t_start, t_end : float, optional
+        The window (default: the whole of ``t``); it must hold at least one finite sample.
+    t_target : numpy.ndarray, optional
+        Sample times of ``target``; it is then interpolated at ``t``.
+    interp : {"linear", "previous"}, optional
+        How ``target`` is interpolated (``"previous"`` for a setpoint log held between changes).
+    unit : str, optional
+        The traces' unit; it only labels the result.
+
+    Returns
+    -------
+    TrackingStats
+        The statistics over the window's finite samples (the others counted in ``dropped``).
+
+    Raises
+    ------
+    ValueError
+        Mismatched shapes, or no finite samples in the window.
     """
     t = as_time(t)
     meas = np.asarray(measured, dtype=float)

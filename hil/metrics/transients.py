@@ -1,5 +1,7 @@
-"""Mass error during speed transients: how much a flow controller's delivery lags (or leads)
-its target while the ground speed changes, as seconds of the flow change.
+"""Mass error during speed transients, as seconds of the flow change.
+
+How much a flow controller's delivery lags (or leads) its target while the ground speed
+changes.
 
 In the field the target flow follows ground speed ([F] eq. 1, ``Q = 0.1·M·D·v``). A
 controller that follows a change of ``Q`` by ``ΔQ`` with a lag of ``τ`` seconds (a pure delay,
@@ -59,9 +61,10 @@ def _mean_between(t: np.ndarray, y: np.ndarray, a: float, b: float) -> float:
 
 def transient_lag(t: np.ndarray, delivered: np.ndarray, target: np.ndarray,
                   windows: list[tuple[float, float]], *, edge_s: float = 0.5) -> TransientLag:
-    """The lag equivalent of the mass error of ``delivered`` against ``target`` (flows, same
-    unit, sampled at ``t``) over the ``windows`` ((start, end) in s, each holding one change of
-    the target and its settling).
+    """The lag equivalent of the mass error of ``delivered`` against ``target``.
+
+    ``delivered`` and ``target`` are flows in the same unit, sampled at ``t``; each of the
+    ``windows`` ((start, end) in s) holds one change of the target and its settling.
 
     Raises
     ------

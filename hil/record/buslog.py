@@ -44,7 +44,7 @@ _Formatter = Callable[[Any, float, bool], str]
 
 
 def _candump_line(channel: str) -> _Formatter:
-    """candump ``-L`` lines as ``CanutilsLogWriter.on_message_received`` writes them."""
+    """Candump ``-L`` lines as ``CanutilsLogWriter.on_message_received`` writes them."""
     if channel.isdigit():
         channel = f"can{channel}"
     prefix = f") {channel} "
@@ -59,8 +59,10 @@ def _candump_line(channel: str) -> _Formatter:
 
 
 def _asc_line(channel: int) -> _Formatter:
-    """Vector ASC frame lines as ``ASCWriter.on_message_received`` writes them (relative
-    time stamps)."""
+    """Vector ASC frame lines as ``ASCWriter.on_message_received`` writes them.
+
+    Time stamps are relative.
+    """
     def line(msg: Any, time_s: float, rx: bool) -> str:
         can_id = f"{msg.arbitration_id:X}x" if msg.is_extended_id \
             else f"{msg.arbitration_id:X}"
@@ -112,8 +114,11 @@ def _asc_span(writer: ASCWriter) -> _Span:
 
 
 def _fast_text(writer: Any, channel: str) -> _FastText | None:
-    """The fast path for ``writer`` if it is a text writer whose lines this module reproduces
-    exactly (checked on probe frames through a scratch writer of the same class)."""
+    """The fast path for ``writer``, if this module reproduces its lines exactly (else None).
+
+    Only text writers qualify; the lines are checked on probe frames through a scratch writer of
+    the same class.
+    """
     if type(writer) is CanutilsLogWriter:
         formatter, span_of = _candump_line(channel), _candump_span
     elif type(writer) is ASCWriter:
@@ -143,10 +148,13 @@ def _fast_text(writer: Any, channel: str) -> _FastText | None:
 
 
 def _open_writer(path: Path) -> Any:
-    """``can.Logger(path)``. That function first scans every installed package's entry points
-    for writer plugins (~10 ms per call), which can only add suffixes it does not know yet: for
-    a suffix already in its table, it returns exactly ``MESSAGE_WRITERS[suffix](file=path)``,
-    which is what is done here without the scan."""
+    """``can.Logger(path)``, without its entry point scan.
+
+    That function first scans every installed package's entry points for writer plugins (~10 ms
+    per call), which can only add suffixes it does not know yet: for a suffix already in its
+    table, it returns exactly ``MESSAGE_WRITERS[suffix](file=path)``, which is what is done here
+    without the scan.
+    """
     writers = getattr(can_logger, "MESSAGE_WRITERS", None)
     suffix = path.suffix.lower()
     if isinstance(writers, dict) and suffix != ".gz" and suffix in writers:
@@ -155,8 +163,10 @@ def _open_writer(path: Path) -> Any:
 
 
 def _stamped(msg: can.Message, time_s: float, *, rx: bool, channel: str) -> can.Message:
-    """``msg`` stamped with the run's time and direction, for python-can's writers (as the
-    log always did: a CAN FD frame's FD flags are not carried over)."""
+    """``msg`` stamped with the run's time and direction, for python-can's writers.
+
+    As the log always did, a CAN FD frame's FD flags are not carried over.
+    """
     return can.Message(timestamp=time_s, arbitration_id=msg.arbitration_id,
                        is_extended_id=msg.is_extended_id, is_remote_frame=msg.is_remote_frame,
                        is_error_frame=msg.is_error_frame, dlc=msg.dlc, data=msg.data,
@@ -169,9 +179,12 @@ _BATCH = 1024
 
 
 def _begin_asc_trigger_block(writer: ASCWriter, first_s: float, start_epoch_s: float) -> None:
-    """What ``ASCWriter.log_event`` writes before its first frame, with the trigger block
-    dated ``start_epoch_s + first_s`` (local time, as python-can writes the ``date`` line) and
-    the relative time stamps still counted from the first frame's ``first_s``."""
+    """What ``ASCWriter.log_event`` writes before its first frame, dated by the run's start.
+
+    The trigger block is dated ``start_epoch_s + first_s`` (local time, as python-can writes the
+    ``date`` line) and the relative time stamps are still counted from the first frame's
+    ``first_s``.
+    """
     when = dt.datetime.fromtimestamp(start_epoch_s + first_s)
     writer.file.write(f"Begin Triggerblock {writer._format_header_datetime(when)}\n")
     writer.header_written = True
@@ -230,8 +243,10 @@ class BusLog:
         self.frames += 1
 
     def _write_any(self, msg: can.Message, time_s: float, rx: bool) -> None:
-        """Any frame, any writer: formatted here where that gives the writer's own line,
-        else through the writer (after the lines formatted here, to keep the order)."""
+        """Any frame, any writer: formatted here where that gives the writer's own line.
+
+        Else the frame goes through the writer (after the lines formatted here, to keep the order).
+        """
         ordinary = not (msg.is_error_frame or msg.is_remote_frame or msg.is_fd)
         stamped = None
         for writer, fast, lines in zip(self._writers, self._fast, self._pending, strict=True):
@@ -264,8 +279,10 @@ class BusLog:
                 lines.clear()
 
     def close(self) -> None:
-        """Write what is pending and close every file (each writer is closed even if another
-        one fails)."""
+        """Write what is pending and close every file.
+
+        Each writer is closed even if another one fails; the first failure is raised after.
+        """
         writers, self._writers = self._writers, []
         self._steady = None
         problems: list[BaseException] = []

@@ -33,6 +33,8 @@ from hil.record.traces import TraceSet
 
 
 class Verdict(StrEnum):
+    """The verdict of a run: pass, fail, or why the run says nothing about the DUT."""
+
     PASS = "pass"
     FAIL = "fail"
     #: bench timing out of bounds: says nothing about the DUT
@@ -49,9 +51,11 @@ _PACKAGES = ("agrihil", "python-can", "cantools", "canopen", "control", "numpy",
 
 
 def versions() -> dict[str, str]:
-    """Python, platform and package versions (looked up once per process: the metadata scan
-    and ``platform.platform()`` cost tens of ms, and they do not change under a running
-    process)."""
+    """Python, platform and package versions, for the record.
+
+    Looked up once per process: the metadata scan and ``platform.platform()`` cost tens of ms,
+    and they do not change under a running process.
+    """
     return dict(_versions())
 
 
@@ -78,6 +82,24 @@ def judge(measurements: list[Measurement], timing: TimingHealth | None) -> Verdi
 
 
 class Recorder:
+    """Collects one run's frames, traces, measurements and facts and writes them to its directory.
+
+    A context manager: on entry the bus log opens; on exit, whatever happened, everything is
+    written (:meth:`close`), with the verdict ``error`` (``aborted`` for Ctrl-C) and the error
+    text if an exception is leaving the block.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        The run's directory (created).
+    run_id : str, optional
+        The run's id (default: 12 random hex digits).
+    bus_log_formats : tuple of str, optional
+        The bus log files to write (see :class:`~hil.record.buslog.BusLog`).
+    csv : bool, optional
+        Also write ``traces.csv``.
+    """
+
     def __init__(self, out_dir: str | Path, *, run_id: str | None = None,
                  bus_log_formats: tuple[str, ...] = DEFAULT_FORMATS, csv: bool = False) -> None:
         self.out_dir = Path(out_dir)
@@ -112,14 +134,20 @@ class Recorder:
         self.close()
 
     def log_frame(self, msg: Any, time_s: float, *, rx: bool) -> None:
+        """Log one frame the rig sent (``rx=False``) or received at run time ``time_s``."""
         if self.bus_log is not None:
             self.bus_log.write(msg, time_s, rx=rx)
 
     def measure(self, measurement: Measurement) -> Measurement:
+        """Keep a judged measurement for the record; returns it."""
         self.measurements.append(measurement)
         return measurement
 
     def record(self) -> dict[str, Any]:
+        """The record as it stands: run id, verdict, error, seeds, timing, measurements, meta.
+
+        The verdict is the one set (error, aborted) or else :func:`judge`'s.
+        """
         verdict = self.verdict or judge(self.measurements, self.timing)
         return {
             "run_id": self.run_id,

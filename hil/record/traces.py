@@ -26,6 +26,11 @@ class TraceError(HilError, ValueError):
 
 
 class TraceSet:
+    """Named signal traces with units, one row per sample time; saved as ``traces.npz``.
+
+    Declare the channels (:meth:`declare`), then append rows (:meth:`append`).
+    """
+
     def __init__(self) -> None:
         self.names: list[str] = []
         self.units: dict[str, str] = {}
@@ -44,6 +49,13 @@ class TraceSet:
         return len(self.names) - 1
 
     def append(self, time_s: float, values: Sequence[float]) -> None:
+        """Append one row: the time and one value per declared channel, in declaration order.
+
+        Raises
+        ------
+        TraceError
+            The row does not have one value per channel (nothing of it is kept).
+        """
         width = len(self.names)
         if len(values) != width:
             raise TraceError(f"row has {len(values)} values for {width} traces")
@@ -60,6 +72,7 @@ class TraceSet:
         return self._rows
 
     def arrays(self) -> dict[str, np.ndarray]:
+        """The traces as arrays: ``time_s`` and one array per channel (copies)."""
         table = np.frombuffer(self._data, dtype=np.float64).reshape(self._rows,
                                                                     len(self.names) + 1)
         out = {"time_s": table[:, 0].copy()}
@@ -68,10 +81,12 @@ class TraceSet:
         return out
 
     def save_npz(self, path: Path) -> Path:
+        """Write the traces and their units (``__units__``) to ``path``; returns it."""
         units = {"time_s": "s", **self.units}
         return write_npz(path, {"__units__": np.array(json.dumps(units)), **self.arrays()})
 
     def save_csv(self, path: Path) -> Path:
+        """Write the traces as CSV to ``path``, one column ``name [unit]`` per trace; returns it."""
         arrays = self.arrays()
         with path.open("w", newline="") as fh:
             writer = csv.writer(fh)
@@ -84,11 +99,13 @@ class TraceSet:
 
 
 def write_npz(path: Path, arrays: dict[str, np.ndarray], *, level: int = 1) -> Path:
-    """Save ``arrays`` as a compressed ``.npz``: what ``np.savez_compressed`` writes (a zip of
-    ``.npy`` members written by ``np.lib.format.write_array``; ``np.load`` reads it the same
-    way) with deflate level 1 instead of zlib's default 6. Recorded signals are float64 that
-    compress by a third either way; level 1 takes half the time or less, and saving sits on
-    every run's critical path."""
+    """Save ``arrays`` as a compressed ``.npz``, with deflate level ``level`` (default 1).
+
+    What ``np.savez_compressed`` writes (a zip of ``.npy`` members written by
+    ``np.lib.format.write_array``; ``np.load`` reads it the same way), with deflate level 1
+    instead of zlib's default 6. Recorded signals are float64 that compress by a third either
+    way; level 1 takes half the time or less, and saving sits on every run's critical path.
+    """
     with zipfile.ZipFile(path, mode="w", compression=zipfile.ZIP_DEFLATED,
                          compresslevel=level) as archive:
         for name, value in arrays.items():

@@ -31,8 +31,17 @@ class RigContext:
 
 
 class Rig(ABC):
-    """A plant emulator: subclasses fill the physics (:meth:`advance`), the devices, the
-    declared inputs/faults, and the trace row. Everything else is the runner's."""
+    """A plant emulator on the bus: physics plus the devices that speak for it.
+
+    Subclasses fill the physics (:meth:`advance`), the devices, the declared inputs and faults,
+    and the trace row. Everything else (stepping, frames, recording) is the runner's
+    (:func:`~hil.rig.runner.run_scenario`).
+
+    Parameters
+    ----------
+    ctx : RigContext
+        The run's seed, random generator, note function and config overrides.
+    """
 
     #: the name the registry knows the rig by
     name: str = "rig"
@@ -56,9 +65,27 @@ class Rig(ABC):
     @classmethod
     def load_config(cls, overrides: Mapping[str, Any] | None = None, *,
                     source: str = "") -> object:
-        """The rig's packaged config with ``overrides`` applied, validated (a
-        :class:`ConfigError` names ``source`` and the key). Rigs without a config accept
-        no overrides."""
+        """The rig's packaged config with ``overrides`` applied, validated.
+
+        Rigs without a config accept no overrides.
+
+        Parameters
+        ----------
+        overrides : mapping, optional
+            Overrides of the packaged config (a DUT profile's ``[rig]`` table).
+        source : str, optional
+            Where the overrides come from, named in errors.
+
+        Returns
+        -------
+        object
+            The rig's config object (None for a rig without a config).
+
+        Raises
+        ------
+        ConfigError
+            An override is unknown or invalid (naming ``source`` and the key).
+        """
         if overrides:
             raise ConfigError(f"the {cls.name} rig takes no config overrides", path=source,
                               key="rig")
@@ -93,7 +120,8 @@ class Rig(ABC):
 
         The runner records a row with this every trace period (100 rows a second): rigs may
         override it to skip building the dict, as long as it returns the same values in the
-        same order (and has the same side effects) as :meth:`trace_signals`."""
+        same order (and has the same side effects) as :meth:`trace_signals`.
+        """
         return [value for value, _ in self.trace_signals().values()]
 
     # --- optional -----------------------------------------------------------------------
@@ -114,9 +142,11 @@ class Rig(ABC):
         return {}
 
     def physics_engines(self) -> dict[str, str]:
-        """Which implementation ran each model (``{"plant": "native", ...}``), for the record:
-        the engines give the same floats, so this tells how the run was computed, not what
-        it computed (see :mod:`plant_emulators.engine`). Empty: one Python implementation."""
+        """Which implementation ran each model (``{"plant": "native", ...}``), for the record.
+
+        The engines give the same floats, so this tells how the run was computed, not what it
+        computed (see :mod:`plant_emulators.engine`). Empty: one Python implementation.
+        """
         return {}
 
     def dut_environment(self) -> dict[str, str]:
@@ -137,6 +167,13 @@ class Rig(ABC):
 
     @classmethod
     def scenario_dir(cls) -> Path:
+        """The directory of the rig's packaged scenarios (``*.toml``).
+
+        Raises
+        ------
+        NotImplementedError
+            The rig ships no scenarios (subclasses override this).
+        """
         raise NotImplementedError
 
     @classmethod

@@ -33,6 +33,18 @@ DATA = bytes([0x55] * 8)   # alternating bits: no stuff bits in the data field
 
 @dataclass(frozen=True)
 class LoadFrame:
+    """One frame of a bus load: its identifier, how often it is sent and its length on the wire.
+
+    Parameters
+    ----------
+    arbitration_id : int
+        The 29-bit identifier.
+    period_s : float
+        The period of its periodic send, in seconds.
+    bits : int
+        Its length on the wire in bits, stuff bits included.
+    """
+
     arbitration_id: int
     period_s: float
     bits: int
@@ -40,7 +52,27 @@ class LoadFrame:
 
 def load_schedule(fraction: float, bitrate_bps: int,
                   mix: tuple[tuple[int, float], ...] = LOAD_MIX) -> list[LoadFrame]:
-    """The frames and periods that occupy ``fraction`` of ``bitrate_bps`` on the wire."""
+    """The frames and periods that occupy ``fraction`` of ``bitrate_bps`` on the wire.
+
+    Parameters
+    ----------
+    fraction : float
+        The share of the bit rate to occupy, in (0, 1).
+    bitrate_bps : int
+        The bus's bit rate.
+    mix : tuple of (int, float), optional
+        (29-bit identifier, share of the load) pairs; default :data:`LOAD_MIX`.
+
+    Returns
+    -------
+    list of LoadFrame
+        One entry per identifier of ``mix``.
+
+    Raises
+    ------
+    ValueError
+        ``fraction`` is not in (0, 1) or the bit rate is not positive.
+    """
     if not 0.0 < fraction < 1.0:
         raise ValueError(f"bus load fraction must be in (0, 1), got {fraction}")
     if bitrate_bps <= 0:
@@ -60,8 +92,20 @@ def offered_load(schedule: list[LoadFrame], bitrate_bps: int) -> float:
 
 
 class BusLoad:
-    """A load node on ``bus`` (a python-can bus of its own: the rig's frames are not its
-    business). A context manager: the periodic sends stop on exit."""
+    """A load node on ``bus``: other ECUs' periodic traffic at a share of the bit rate.
+
+    ``bus`` is a python-can bus of its own (the rig's frames are not its business). A context
+    manager: the periodic sends start on entry and stop on exit.
+
+    Parameters
+    ----------
+    bus : can.BusABC
+        The node's own connection to the rig's bus.
+    fraction : float
+        The share of the bit rate the load occupies, in (0, 1).
+    bitrate_bps : int
+        The bus's bit rate.
+    """
 
     def __init__(self, bus: can.BusABC, fraction: float, bitrate_bps: int) -> None:
         self.bus = bus
@@ -71,6 +115,13 @@ class BusLoad:
         self._tasks: list[can.broadcastmanager.CyclicSendTaskABC] = []
 
     def start(self) -> BusLoad:
+        """Start one periodic send per frame of the schedule.
+
+        Returns
+        -------
+        BusLoad
+            This node.
+        """
         for frame in self.schedule:
             msg = can.Message(arbitration_id=frame.arbitration_id, is_extended_id=True,
                               data=DATA)
@@ -78,8 +129,11 @@ class BusLoad:
         return self
 
     def stop(self) -> None:
-        """Stop every periodic send and wait for its thread: python-can's ``stop`` only flags
-        it, and a send after the bus is shut down fails in that thread."""
+        """Stop every periodic send and wait for its thread.
+
+        python-can's ``stop`` only flags it, and a send after the bus is shut down fails in that
+        thread.
+        """
         for task in self._tasks:
             task.stop()
         for task in self._tasks:
@@ -105,8 +159,23 @@ class BusLoad:
 
 def wire_load(log_path: str, bitrate_bps: int, t0: float | None = None,
               t1: float | None = None) -> float:
-    """Fraction of the bit rate the frames of a bus log occupied between ``t0`` and ``t1``
-    (log timestamps; default: the first and last frame)."""
+    """Fraction of the bit rate the frames of a bus log occupied between ``t0`` and ``t1``.
+
+    Parameters
+    ----------
+    log_path : str
+        A bus log python-can reads (``.asc``, ``.blf``, ...).
+    bitrate_bps : int
+        The bus's bit rate.
+    t0, t1 : float, optional
+        The window in log timestamps; default: the first and the last frame.
+
+    Returns
+    -------
+    float
+        Bits of the frames in the window (stuff bits included, error frames left out) over the
+        bits the window could carry; 0 for fewer than two frames or an empty window.
+    """
     stamps_bits = [(msg.timestamp, frame_bits(msg.arbitration_id, msg.is_extended_id,
                                               bytes(msg.data)))
                    for msg in can.LogReader(log_path) if not msg.is_error_frame]

@@ -59,29 +59,47 @@ class _NoTask:
 
 
 class OutboxNetwork(canopen.Network):
-    """A canopen Network without a bus: frames canopen sends are collected in ``outbox``
-    (take them with :meth:`take`); received frames are fed in with ``notify``."""
+    """A canopen Network without a bus: what canopen sends is collected, not transmitted.
+
+    Frames canopen sends are collected in ``outbox`` (take them with :meth:`take`); received
+    frames are fed in with ``notify``.
+    """
 
     def __init__(self) -> None:
         super().__init__(bus=None)
         self.outbox: list[can.Message] = []
 
     def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:
+        """Append the frame canopen sends to the outbox (an identifier above 0x7FF is 29-bit)."""
         self.outbox.append(can.Message(arbitration_id=can_id, data=bytes(data),
                                        is_extended_id=can_id > 0x7FF, is_remote_frame=remote))
 
     def send_periodic(self, can_id: int, data: bytes, period: float,
                       remote: bool = False) -> Any:
+        """Start nothing (the rig schedules periodic frames itself): a task that does nothing."""
         return _NoTask()
 
     def take(self) -> list[can.Message]:
+        """The frames collected since the last call, in order; the outbox is emptied."""
         out, self.outbox = self.outbox, []
         return out
 
 
 class CanopenDevice(Device):
-    """A CANopen node from an EDS. ``autostart``: go operational after boot-up without waiting
-    for an NMT start (as I/O modules with NMT startup 0x1F80 bit 2 do)."""
+    """A CANopen node from an EDS, played by the rig under its clock.
+
+    Parameters
+    ----------
+    name : str
+        The node's name in notes and errors.
+    node_id : int
+        The CANopen node id.
+    eds : str or Path
+        The EDS file that defines its object dictionary and PDOs.
+    autostart : bool, optional
+        Go operational after boot-up without waiting for an NMT start (as I/O modules with NMT
+        startup 0x1F80 bit 2 do); otherwise stay pre-operational.
+    """
 
     def __init__(self, name: str, node_id: int, eds: str | Path, *,
                  autostart: bool = True) -> None:
@@ -118,7 +136,8 @@ class CanopenDevice(Device):
         """The value the object dictionary holds now (what the DUT last wrote, say).
 
         Decoded straight from the node's data store (what its SDO server would answer),
-        without the SDO layer: this runs in the physics loop."""
+        without the SDO layer: this runs in the physics loop.
+        """
         obj = self.node.object_dictionary[index]
         if not isinstance(obj, canopen.objectdictionary.ODVariable):
             obj = obj[subindex]
@@ -137,8 +156,20 @@ class CanopenDevice(Device):
         return self.errors.register
 
     def raise_error(self, code: int, bits: int | None = None, info: int = 0) -> None:
-        """Error ``code`` occurred: 0x1001/0x1003 updated and its EMCY queued (once while it
-        stays active)."""
+        """Record that error ``code`` occurred and queue its EMCY.
+
+        0x1001 and 0x1003 are updated; the EMCY is queued once while the error stays active.
+
+        Parameters
+        ----------
+        code : int
+            The CiA 301 error code.
+        bits : int, optional
+            The error register bits to set (default: from the code's class; the generic
+            bit is always set).
+        info : int, optional
+            Manufacturer-specific information: the upper 16 bits of its 0x1003 entry.
+        """
         event = self.errors.occur(code, bits, info)
         if event is not None:
             self._emcy_pending.append(emcy_payload(event[0], self.error_register()))
@@ -206,9 +237,11 @@ class CanopenDevice(Device):
 
     @property
     def operational(self) -> bool:
+        """Whether the node is in the NMT state operational."""
         return bool(self.node.nmt.state == "OPERATIONAL")
 
     def heartbeat_period_s(self) -> float:
+        """The heartbeat producer time (0x1017) in seconds; 0 when the EDS has none."""
         try:
             ms = int(self.node.sdo[0x1017].raw)
         except (KeyError, canopen.SdoAbortedError):
@@ -224,6 +257,10 @@ class CanopenDevice(Device):
 
     # --- Device ----------------------------------------------------------------------------
     def next_due(self, time_s: float) -> float:
+        """The earliest of the next heartbeat, event-timer TPDO and pending EMCY after ``time_s``.
+
+        Before boot-up: 0 (the boot-up message goes out first).
+        """
         if not self._booted:
             return 0.0
         candidates = [math.inf]
@@ -246,6 +283,10 @@ class CanopenDevice(Device):
         return max(1, tpdo.event_timer or 0) / 1000.0
 
     def emit(self, time_s: float) -> list[can.Message]:
+        """The frames due at ``time_s``: boot-up first, then EMCYs, the heartbeat and event TPDOs.
+
+        Event-timer TPDOs go out only in operational; a silent node sends nothing.
+        """
         if self.silent:
             return []
         out: list[can.Message] = []
@@ -270,11 +311,18 @@ class CanopenDevice(Device):
         return out
 
     def accepts(self, msg: can.Message) -> bool:
+        """Whether ``msg`` is for this node: NMT (0x000), SYNC, its SDO requests or its RPDOs."""
         can_id = msg.arbitration_id
         return (not msg.is_extended_id and (can_id in (0x000, SYNC_ID, 0x600 + self.node_id)
                                             or can_id in self._rpdo_by_id))
 
     def on_frame(self, msg: can.Message, time_s: float) -> list[can.Message]:
+        """Handle a frame for this node under the NMT state rules; return the replies.
+
+        SYNC sends the synchronous TPDOs (operational only); RPDOs are stored, synchronous ones at
+        the next SYNC; NMT commands change the state (a reset sends the boot-up message); SDO
+        requests are answered by canopen's SDO server, except in stopped.
+        """
         if self.silent:
             return []
         can_id, data = msg.arbitration_id, bytes(msg.data)
@@ -300,9 +348,11 @@ class CanopenDevice(Device):
         return self.network.take() + self._take_emcy(time_s)
 
     def _reset(self, time_s: float) -> list[can.Message]:
-        """NMT reset node / reset communication: the boot-up message, then pre-operational
-        (operational with autostart); the heartbeat restarts from now. The application (a
-        drive's state machine) is not reset."""
+        """NMT reset node or reset communication: the boot-up message, then pre-operational.
+
+        With autostart the node goes operational; the heartbeat restarts from now. The application
+        (a drive's state machine) is not reset.
+        """
         self.network.take()
         self._pending_sync_rpdos.clear()
         self._sync_count = 0
@@ -373,10 +423,12 @@ class CanopenDevice(Device):
                 self.rejected.append((index, subindex, str(exc)))
 
     def _byte_plan(self, pdo: PdoMap) -> _Plan | None:
-        """(variable, index, subindex, first byte, end byte) of every mapped variable if all
-        are whole bytes at whole-byte offsets (else None: canopen's bit-level path). Kept per
-        map and rebuilt when canopen rebuilds the map's variable list (a new list on every
-        ``read``) or adds to it."""
+        """The byte plan of a PDO map, or None if any variable is not whole bytes at a whole byte.
+
+        The plan is (variable, index, subindex, first byte, end byte) of every mapped variable
+        (None: canopen's bit-level path). Kept per map and rebuilt when canopen rebuilds the map's
+        variable list (a new list on every ``read``) or adds to it.
+        """
         variables = pdo.map
         cached = self._plans.get(id(pdo))
         if cached is not None and cached[0] is variables and cached[1] == len(variables):

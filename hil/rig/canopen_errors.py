@@ -111,7 +111,8 @@ class ErrorState:
         """Error ``code`` occurs: record it, return (code, register) for its EMCY.
 
         ``bits``: its error register bits (default: from the code's class; bit 0 always).
-        Returns None if the error is already active (no second EMCY for the same error)."""
+        Returns None if the error is already active (no second EMCY for the same error).
+        """
         code &= 0xFFFF
         if code == 0:
             raise ValueError("error code 0x0000 means 'no error'; use clear()")
@@ -125,15 +126,26 @@ class ErrorState:
         return code, self.register
 
     def clear(self, code: int) -> tuple[int, int] | None:
-        """Error ``code`` went away: return (0x0000, register of those left) for the reset
-        EMCY, or None if it was not active."""
+        """Record that error ``code`` went away.
+
+        Returns
+        -------
+        tuple of (int, int) or None
+            (0x0000, register of the errors left) for the error-reset EMCY, or None if the error
+            was not active.
+        """
         if self.active.pop(code & 0xFFFF, None) is None:
             return None
         return 0, self.register
 
     def clear_all(self) -> tuple[int, int] | None:
-        """Every active error went away (a fault reset): the reset EMCY, or None if none was
-        active."""
+        """Record that every active error went away (a fault reset).
+
+        Returns
+        -------
+        tuple of (int, int) or None
+            (0x0000, 0) for the error-reset EMCY, or None if no error was active.
+        """
         if not self.active:
             return None
         self.active.clear()

@@ -30,6 +30,7 @@ class Device(ABC):
         """Frames to send now (called at or just after the time :meth:`next_due` gave)."""
 
     def accepts(self, msg: can.Message) -> bool:
+        """Whether this node consumes ``msg`` (then :meth:`on_frame` gets it); default: no frame."""
         return False
 
     def on_frame(self, msg: can.Message, time_s: float) -> list[can.Message]:
@@ -48,12 +49,14 @@ class PeriodicDevice(Device):
         self.offset_s = offset_s
 
     def next_due(self, time_s: float) -> float:
+        """The next multiple of ``period_s`` after ``offset_s`` that is later than ``time_s``."""
         if time_s < self.offset_s:
             return self.offset_s
         k = math.floor((time_s - self.offset_s) / self.period_s + 1e-9) + 1
         return self.offset_s + k * self.period_s
 
     def emit(self, time_s: float) -> list[can.Message]:
+        """The frames of this period (:meth:`frames`), or none while the node is silent."""
         if self.silent:
             return []
         return self.frames(time_s)
@@ -73,5 +76,6 @@ class Heartbeat(PeriodicDevice):
         self.state = state
 
     def frames(self, time_s: float) -> list[can.Message]:
+        """The heartbeat frame: the node's state byte on COB-ID 0x700 + node id."""
         return [can.Message(arbitration_id=0x700 + self.node_id, data=bytes([self.state]),
                             is_extended_id=False)]

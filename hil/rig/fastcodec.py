@@ -47,9 +47,29 @@ _LOADED: dict[tuple[Any, ...], tuple[Database, dict[str, Any]]] = {}
 
 def load_compiled(path: Path, build: Callable[[Message], F | None], *,
                   strict: bool = True) -> tuple[Database, dict[str, F]]:
-    """The DBC at ``path`` and, by message name, what ``build`` compiles of its messages
-    (those it returns ``None`` for are left out). Cached while the file is unchanged; a file
-    that cannot be loaded raises :class:`FrameError` naming it."""
+    """The DBC at ``path`` and what ``build`` compiles of its messages, cached.
+
+    Cached while the file is unchanged (same path, modification time and size).
+
+    Parameters
+    ----------
+    path : Path
+        The DBC file.
+    build : callable
+        Compiles one cantools message; messages it returns None for are left out.
+    strict : bool, optional
+        cantools' strict loading (signals checked for overlaps and length).
+
+    Returns
+    -------
+    tuple of (Database, dict)
+        The cantools database and, by message name, what ``build`` returned.
+
+    Raises
+    ------
+    FrameError
+        The file cannot be loaded as a CAN database (naming it).
+    """
     try:
         st = path.stat()
         key: tuple[Any, ...] | None = (str(path.resolve()), st.st_mtime_ns, st.st_size,
@@ -131,8 +151,10 @@ class FrameLayout:
 
     @classmethod
     def build(cls, message: Any) -> FrameLayout | None:
-        """The layout of ``message``, or ``None`` if it is not one this module compiles or if
-        the compiled form disagrees with cantools on the probe values."""
+        """The layout of ``message``, or None if this module does not compile it.
+
+        None also when the compiled form disagrees with cantools on the probe values.
+        """
         if message.is_container or message.is_multiplexed():
             return None
         length = message.length
@@ -180,8 +202,10 @@ class FrameLayout:
         return x.to_bytes(self.length, "little")
 
     def unpack(self, data: bytes) -> list[int]:
-        """Raw value of every signal (in :attr:`signals` order) from at least ``length``
-        bytes (extra bytes are ignored, as cantools does)."""
+        """Raw value of every signal (in :attr:`signals` order) from at least ``length`` bytes.
+
+        Extra bytes are ignored, as cantools does.
+        """
         x = int.from_bytes(data[:self.length], "little")
         out = []
         for sig in self.signals:
@@ -227,8 +251,11 @@ class FrameLayout:
 
 
 def _kind(conversion: Any) -> int | None:
-    """Which numeric conversion cantools applies: the conversion itself, or for a signal with
-    a value table the one cantools' factory builds for its scale and offset."""
+    """Which numeric conversion cantools applies to a signal.
+
+    The conversion itself or, for a signal with a value table, the one cantools' factory builds
+    for its scale and offset.
+    """
     if conversion.choices is not None:
         conversion = BaseConversion.factory(scale=conversion.scale, offset=conversion.offset,
                                             choices=None, is_float=conversion.is_float)

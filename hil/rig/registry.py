@@ -16,12 +16,35 @@ ENTRY_POINT_GROUP = "agrihil.rigs"
 
 
 def available_rigs() -> list[str]:
+    """The names of every rig known: the built-in ones and those of the entry point group.
+
+    Returns
+    -------
+    list of str
+        Sorted rig names.
+    """
     names = set(RIGS) | {ep.name for ep in entry_points(group=ENTRY_POINT_GROUP)}
     return sorted(names)
 
 
 def load_rig(name: str) -> type[Rig]:
-    """The rig class called ``name`` (``sowing-depth`` and ``sowing_depth`` are one rig)."""
+    """The rig class called ``name`` (``sowing-depth`` and ``sowing_depth`` are one rig).
+
+    Parameters
+    ----------
+    name : str
+        A built-in rig or one registered under the ``agrihil.rigs`` entry point group.
+
+    Returns
+    -------
+    type of Rig
+        The rig class (imported on first use).
+
+    Raises
+    ------
+    ConfigError
+        No rig has that name (the message lists the available ones).
+    """
     name = name.replace("-", "_")
     target = RIGS.get(name)
     if target is None:

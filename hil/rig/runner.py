@@ -44,18 +44,43 @@ LOCKSTEP_BUSY_POLL_US = 300.0
 
 @dataclass(frozen=True)
 class RunOptions:
+    """How one scenario run is carried out: where it writes, its clock, bus, seed and limits.
+
+    Parameters
+    ----------
+    out_dir : Path
+        Where the run's record, traces and bus log go.
+    clock : str
+        ``"lockstep"`` (the rig waits for the DUT every control period) or ``"realtime"``.
+    bus : str
+        ``"softbus"`` starts an embedded software bus, ``"virtual"`` an in-process bus;
+        anything else is a bus spec (:func:`hil.bus.open_bus`).
+    seed : int or None
+        The run's seed; None: the scenario's own.
+    step_timeout_s : float
+        How long the DUT may stay silent before it counts as stopped answering: the SYNC
+        barrier's timeout in lockstep, the longest gap between its command frames in real time.
+    csv : bool
+        Also write the traces as CSV.
+    rig_config : dict
+        Overrides of the rig's packaged config (a DUT profile's ``[rig]``).
+    rig_config_source : str
+        Where those overrides come from, named in errors.
+    max_dut_frames_per_period : int or None
+        More frames than this from the DUT within one control period ends the run (a DUT that
+        floods the bus); a profile's ``timing.max_frames_per_period``. None: no limit.
+    extra_meta : dict
+        More entries for the record's metadata (the DUT's identity, the test's node id).
+    """
+
     out_dir: Path
     clock: str = "lockstep"
-    #: 'softbus' starts an embedded software bus; 'virtual' an in-process bus; else a spec
     bus: str = "softbus"
     seed: int | None = None
     step_timeout_s: float = 2.0
     csv: bool = False
-    #: overrides of the rig's packaged config (a DUT profile's ``[rig]``), and their source
     rig_config: dict[str, Any] = field(default_factory=dict)
     rig_config_source: str = ""
-    #: more frames than this from the DUT within one control period ends the run (a DUT that
-    #: floods the bus); a profile's timing.max_frames_per_period. None: no limit
     max_dut_frames_per_period: int | None = None
     extra_meta: dict[str, Any] = field(default_factory=dict)
     #: False: no bus log files (a campaign's measurements-only sample; the traces the
@@ -64,8 +89,22 @@ class RunOptions:
 
 
 def bus_load_refusal(bus: str, clock: str) -> str | None:
-    """Why ``bus``/``clock`` cannot carry a bus load (None: it can). Load needs real time and
-    a wire with a bit rate: the paced software bus or a physical bus."""
+    """Why ``bus`` and ``clock`` cannot carry a bus load, or None if they can.
+
+    Load needs real time and a wire with a bit rate: the paced software bus or a physical bus.
+
+    Parameters
+    ----------
+    bus : str
+        The bus spec of the run.
+    clock : str
+        The clock of the run.
+
+    Returns
+    -------
+    str or None
+        The reason, to follow "bus load ..." in a message; None when the load can run.
+    """
     if clock != "realtime":
         return "needs the realtime clock (lockstep time has no wire to load)"
     if bus in ("inline", "virtual") or bus.startswith("virtual:"):
@@ -99,6 +138,20 @@ def _start_bus_load(spec: str, fraction: float, bitrate_bps: int,
 
 @dataclass
 class RunResult:
+    """What :func:`run_scenario` returns: the run's record and where it was written.
+
+    Parameters
+    ----------
+    record : dict
+        The run's final record (as in its ``record.json``).
+    out_dir : Path
+        The run's directory.
+    wall_s : float
+        Wall-clock duration of the run, in seconds.
+    sim_s : float
+        Simulated time the run reached, in seconds.
+    """
+
     record: dict[str, Any]
     out_dir: Path
     wall_s: float
@@ -106,10 +159,12 @@ class RunResult:
 
     @property
     def verdict(self) -> str:
+        """The run's verdict (the record's ``verdict``)."""
         return str(self.record["verdict"])
 
     @property
     def realtime_factor(self) -> float:
+        """Simulated seconds per wall-clock second (infinite for a zero wall time)."""
         return self.sim_s / self.wall_s if self.wall_s > 0 else math.inf
 
 
@@ -159,8 +214,10 @@ class _Loop:
         self._log_frame(msg, self._now(), rx=rx)
 
     def _on_sync_sent(self, sync: can.Message) -> None:
-        """The rig's own nodes hear its SYNC too (a bus does not echo a sender's frames):
-        their SYNC-triggered TPDOs follow the SYNC on the bus, as in CANopen."""
+        """Let the rig's own nodes hear its SYNC (a bus does not echo a sender's frames).
+
+        Their SYNC-triggered TPDOs follow the SYNC on the bus, as in CANopen.
+        """
         self._log(sync, rx=False)
         t = self.clock.time_s
         for device in self.rig.devices:
@@ -302,9 +359,11 @@ class _Loop:
             self.rec.timing = self.clock.stop()
 
     def _check_answering(self) -> None:
-        """Real time: a DUT whose command frames stopped for longer than the limit has stopped
-        answering (a hang), which fails the run as a crash does. A DUT that never sent one
-        is not judged here (in lockstep it fails the first SYNC)."""
+        """Real time: fail the run of a DUT whose command frames stopped for longer than the limit.
+
+        That is a hang, which fails the run as a crash does. A DUT that never sent one is not judged
+        here (in lockstep it fails the first SYNC).
+        """
         if not self.command_ids or self.last_command_s is None:
             return
         silent_s = self.clock.time_s - self.last_command_s
@@ -334,8 +393,11 @@ class _Loop:
 
 
 def _record_bus_stats(rec: Recorder, softbus: Any) -> None:
-    """The software bus's counters into the record (a bus process that died meanwhile is
-    noted, not raised: the run's own error, if any, is the one to report)."""
+    """Put the software bus's counters into the record.
+
+    A bus process that died meanwhile is noted, not raised: the run's own error, if any, is the
+    one to report.
+    """
     try:
         rec.meta["softbus"] = softbus.stats()
     except (BusError, OSError, ValueError) as exc:
@@ -348,9 +410,23 @@ SEED_MAX = 2**63 - 1
 
 
 def check_events(scenario: Scenario, path: str | None = None) -> None:
-    """Refuse a scenario file whose events come after the end of its run (they would be
-    dropped silently). Not part of :func:`check_run`: code may shorten a packaged scenario
-    on purpose (a short smoke run) and keep its later events unapplied."""
+    """Refuse a scenario file whose events come after the end of its run.
+
+    They would be dropped silently. Not part of :func:`check_run`: code may shorten a packaged
+    scenario on purpose (a short smoke run) and keep its later events unapplied.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario as loaded.
+    path : str, optional
+        The scenario file, named in the error.
+
+    Raises
+    ------
+    ConfigError
+        An event's time is not finite or is after ``duration_s`` (naming the event's key).
+    """
     for i, event in enumerate(scenario.events):
         if not math.isfinite(event.at_s) or event.at_s > scenario.duration_s:
             raise ConfigError(f"scenario {scenario.name}: event at t = {event.at_s} s comes "
@@ -360,9 +436,22 @@ def check_events(scenario: Scenario, path: str | None = None) -> None:
 
 
 def check_run(scenario: Scenario, options: RunOptions) -> None:
-    """Refuse what cannot make a meaningful run, before anything starts (:class:`ConfigError`
-    naming the key): a duration that is not finite, a step timeout that is not a finite
-    number of seconds above zero, a seed out of range."""
+    """Refuse what cannot make a meaningful run, before anything starts.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario to run.
+    options : RunOptions
+        The run's options.
+
+    Raises
+    ------
+    ConfigError
+        Naming the key: a duration that is not a finite number of seconds above zero, a step
+        timeout that is not a finite number of seconds above zero, a seed outside
+        0 .. 2**63-1.
+    """
     where = {"path": None}
     if not (math.isfinite(scenario.duration_s) and scenario.duration_s > 0):
         raise ConfigError(f"scenario {scenario.name}: duration_s = {scenario.duration_s} is "
@@ -393,13 +482,37 @@ def _dut_stopped(exc: BaseException, t: float) -> tuple[str, dict[str, Any]]:
 
 def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
                  options: RunOptions) -> RunResult:
-    """Run ``scenario`` on a fresh ``rig_cls`` against ``dut``; write everything to
-    ``options.out_dir`` and return the record.
+    """Run ``scenario`` on a fresh ``rig_cls`` against ``dut``, writing to ``options.out_dir``.
 
     A DUT that dies, exits, raises or stops answering (at start-up or during the run) makes a
     failed run, not an exception: the record's ``error`` says what and when ("the DUT exited
-    with SIGSEGV at t = 12.3 s") and ``dut_stopped`` holds the time. A DUT that cannot be
-    started at all (:class:`~hil.dut.base.DutSetupError`) and bad options raise."""
+    with SIGSEGV at t = 12.3 s") and ``dut_stopped`` holds the time. Whatever ends the run, the
+    recorder writes what it has, the DUT is stopped and the rig closed.
+
+    Parameters
+    ----------
+    rig_cls : type of Rig
+        The rig to build for this run.
+    scenario : Scenario
+        What happens during the run (inputs, events, duration, seed).
+    dut : DutRunner
+        The controller under test; started on the run's bus and stopped at the end.
+    options : RunOptions
+        Where the run writes, its clock, bus, seed and limits.
+
+    Returns
+    -------
+    RunResult
+        The final record, the run's directory and its wall-clock and simulated durations.
+
+    Raises
+    ------
+    ConfigError
+        Bad options or a scenario the bus or clock cannot carry (:func:`check_run`, a bus load
+        on a bus without a bit rate, the inline bus without lockstep or an in-process DUT).
+    DutSetupError
+        The DUT cannot be started at all.
+    """
     check_run(scenario, options)
     seed = options.seed if options.seed is not None else scenario.seed
     run_id = uuid.uuid4().hex[:12]

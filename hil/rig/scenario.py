@@ -37,12 +37,37 @@ MAX_DURATION_S = 86_400.0
 
 @dataclass(frozen=True)
 class Event:
+    """One timed event of a scenario: set inputs, inject or clear a fault, or restart the DUT.
+
+    Exactly one of ``set``, ``fault``, ``clear`` and ``dut`` is given.
+
+    Parameters
+    ----------
+    at_s : float
+        When the event happens, in seconds of run time (finite, >= 0).
+    set : dict of str to float, optional
+        Inputs to set (names the rig declares in :attr:`Rig.inputs`).
+    fault : str, optional
+        A fault to inject (a name of :attr:`Rig.faults`).
+    clear : str, optional
+        A fault to clear.
+    target : int, optional
+        What the fault applies to, where the rig has several (a row, a sensor), >= 0.
+    dut : str, optional
+        ``"restart"``: the DUT is stopped and started again (a power cycle of the controller).
+
+    Raises
+    ------
+    ConfigError
+        Not exactly one action, an unknown DUT action, a time or value that is not finite, or a
+        negative target (naming the key).
+    """
+
     at_s: float
     set: dict[str, float] | None = None
     fault: str | None = None
     clear: str | None = None
     target: int | None = None
-    #: "restart": the DUT is stopped and started again (a power cycle of the controller)
     dut: str | None = None
 
     def __post_init__(self) -> None:
@@ -65,6 +90,38 @@ class Event:
 
 @dataclass(frozen=True)
 class Scenario:
+    """A scenario: what happens to the rig during one run.
+
+    Parameters
+    ----------
+    name : str
+        The scenario's name.
+    description : str
+        One line saying what it tests.
+    rig : str
+        The rig it is for.
+    duration_s : float
+        How long the run lasts, in seconds (at most a day).
+    seed : int, optional
+        The seed of the rig's random generator (noise, field variation), >= 0.
+    initial : dict of str to float, optional
+        Inputs at t = 0.
+    speed_profile : tuple of (float, float), optional
+        (time s, ground speed m/s) breakpoints, increasing in time; linear in between.
+    events : tuple of Event, optional
+        Timed events (kept sorted by time).
+    tags : tuple of str, optional
+        Free-form labels.
+    bus_load : float, optional
+        Other ECUs' traffic added to the bus, as a fraction of the rig's bit rate in [0, 1)
+        (:mod:`hil.rig.busload`); needs real time and a bus with a bit rate. 0: none.
+
+    Raises
+    ------
+    ConfigError
+        A value out of range or not finite, or speed breakpoints out of order (naming the key).
+    """
+
     name: str
     description: str
     rig: str
@@ -74,8 +131,6 @@ class Scenario:
     speed_profile: tuple[tuple[float, float], ...] = ()
     events: tuple[Event, ...] = ()
     tags: tuple[str, ...] = ()
-    #: other ECUs' traffic added to the bus, as a fraction of the rig's bit rate
-    #: (:mod:`hil.rig.busload`); needs real time and a bus with a bit rate. 0: none
     bus_load: float = 0.0
 
     def __post_init__(self) -> None:
@@ -114,7 +169,22 @@ class Scenario:
 
     def check_against(self, inputs: dict[str, str], faults: dict[str, str],
                       path: str | None = None) -> None:
-        """Refuse keys and faults the rig does not know, naming them."""
+        """Refuse inputs and faults the rig does not know, naming them.
+
+        Parameters
+        ----------
+        inputs : dict of str to str
+            The rig's inputs (name to unit).
+        faults : dict of str to str
+            The rig's faults (name to what it does).
+        path : str, optional
+            The scenario file, named in the error.
+
+        Raises
+        ------
+        ConfigError
+            An initial or event input, or an event's fault, is not the rig's (naming the key).
+        """
         for key in self.initial:
             if key not in inputs:
                 raise ConfigError(f"unknown input; the rig takes: {', '.join(sorted(inputs))}",
@@ -133,9 +203,27 @@ class Scenario:
 
 
 def load_scenario(path: str | Path) -> Scenario:
-    """Read and check a scenario file; an event after the end of the run (it would never
-    happen) is refused, naming it. (A scenario shortened in code, e.g. with
-    ``dataclasses.replace``, may drop its later events on purpose.)"""
+    """Read and check a scenario file.
+
+    An event after the end of the run (it would never happen) is refused, naming it. A scenario
+    shortened in code (with ``dataclasses.replace``, say) may drop its later events on purpose.
+
+    Parameters
+    ----------
+    path : str or Path
+        The TOML file.
+
+    Returns
+    -------
+    Scenario
+        The scenario, its events sorted by time.
+
+    Raises
+    ------
+    ConfigError
+        A missing or unknown key, a bad value, or an event after ``duration_s`` (naming the file
+        and the key).
+    """
     scenario = load_toml(path, Scenario)
     for i, event in enumerate(scenario.events):
         if event.at_s > scenario.duration_s:
