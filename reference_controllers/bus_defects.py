@@ -28,15 +28,14 @@ DUT passes the control suites and must fail its bus conformance
 from __future__ import annotations
 
 import logging
-import os
 import signal
 import sys
 
 import can
 
-from hil.bus import open_bus
 from hil.dut import Controller
-from reference_controllers.daemon import Daemon, Stop, build_parser, parse_params
+from hil.errors import BusSpecError
+from reference_controllers.daemon import Stop, build_parser, parse_params, serve
 from reference_controllers.params import ParamError, ParamValue
 from reference_controllers.registry import CONTROLLERS, make_controller
 
@@ -252,22 +251,12 @@ def main(argv: list[str] | None = None) -> int:
     stop = Stop()
     signal.signal(signal.SIGTERM, stop)
     signal.signal(signal.SIGINT, stop)
-    controller.configure(dict(os.environ))
-    bus = open_bus(args.bus)
-    log = logging.getLogger("bus_defects")
-    log.info("%s with bus defect %s on %s", args.controller, args.defect, args.bus)
     try:
-        Daemon(controller, bus, sync=args.sync, period_s=period_s, stop=stop).run()
-    except Exception as exc:
-        log.error("controller failed: %s: %s", type(exc).__name__, exc)
-        return 1
-    finally:
-        bus.shutdown()
-        close = getattr(controller, "close", None)
-        if close is not None:
-            close()
-    return 0
-
+        return serve(controller, args.bus, sync=args.sync, period_s=period_s, stop=stop,
+                     logger=logging.getLogger("bus_defects"), log_traceback=False,
+                     started=f"{args.controller} with bus defect {args.defect} on {args.bus}")
+    except BusSpecError as exc:
+        parser.error(str(exc))
 
 if __name__ == "__main__":
     raise SystemExit(main())

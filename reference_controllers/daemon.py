@@ -192,26 +192,64 @@ def main(argv: list[str] | None = None) -> int:
     stop = Stop()
     signal.signal(signal.SIGTERM, stop)
     signal.signal(signal.SIGINT, stop)
-    try:
-        controller.configure(dict(os.environ))
-        bus = open_bus(bus_spec_for_daemon(args.bus))
-    except BusSpecError as exc:
-        parser.error(str(exc))
-    except (BusError, OSError) as exc:
-        log.error("cannot start: %s", exc)
-        return 1
     timing = "sync (one step per SYNC)" if sync else f"free-running every {period_s * 1e3:g} ms"
     shown = " ".join(f"{k}={v}" for k, v in params.items()) or "defaults"
-    log.info("%s on %s, %s, parameters: %s (pid %d)", args.controller, args.bus, timing,
-             shown, os.getpid())
-    daemon = Daemon(controller, bus, sync=sync, period_s=period_s, stop=stop)
     try:
-        daemon.run()
+        return serve(controller, args.bus, sync=sync, period_s=period_s, stop=stop, logger=log,
+                     started=f"{args.controller} on {args.bus}, {timing}, parameters: {shown} "
+                             f"(pid {os.getpid()})")
+    except BusSpecError as exc:
+        parser.error(str(exc))
+
+
+def serve(controller: Controller, spec: str, *, sync: bool, period_s: float, stop: Stop,
+          logger: logging.Logger, started: str, log_traceback: bool = True) -> int:
+    """Configure ``controller``, open its bus and run :class:`Daemon` until stopped.
+
+    The one run loop of every daemon (the reference daemon and the must-fail ones): the bus
+    is opened through :func:`bus_spec_for_daemon`, so a daemon exits when its bus closes.
+
+    Parameters
+    ----------
+    controller : Controller
+        The controller to run.
+    spec : str
+        The ``--bus`` spec as given.
+    sync, period_s, stop
+        As :class:`Daemon` takes them.
+    logger : logging.Logger
+        Where the start line and the errors go.
+    started : str
+        The start line (what runs, where, how).
+    log_traceback : bool
+        Log a controller's exception with its traceback.
+
+    Returns
+    -------
+    int
+        The exit status: 0 when stopped, 1 when the bus could not be opened or failed, or the
+        controller raised.
+
+    Raises
+    ------
+    BusSpecError
+        ``spec`` names no bus (the caller reports it as a usage error).
+    """
+    try:
+        controller.configure(dict(os.environ))
+        bus = open_bus(bus_spec_for_daemon(spec))
+    except (BusError, OSError) as exc:
+        logger.error("cannot start: %s", exc)
+        return 1
+    logger.info("%s", started)
+    try:
+        Daemon(controller, bus, sync=sync, period_s=period_s, stop=stop).run()
     except (can.CanError, OSError) as exc:
-        log.error("bus failed: %s", exc)
+        logger.error("bus failed: %s", exc)
         return 1
     except Exception as exc:
-        log.exception("controller failed: %s: %s", type(exc).__name__, exc)
+        (logger.exception if log_traceback else logger.error)(
+            "controller failed: %s: %s", type(exc).__name__, exc)
         return 1
     finally:
         bus.shutdown()
@@ -219,7 +257,6 @@ def main(argv: list[str] | None = None) -> int:
         if close is not None:
             close()
     return 0
-
 
 if __name__ == "__main__":
     raise SystemExit(main())

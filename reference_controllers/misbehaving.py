@@ -47,7 +47,6 @@ same way.
 from __future__ import annotations
 
 import logging
-import os
 import signal
 import sys
 from collections.abc import Callable
@@ -55,9 +54,9 @@ from typing import Any
 
 import can
 
-from hil.bus import open_bus
 from hil.dut import Controller
-from reference_controllers.daemon import Daemon, Stop, build_parser, parse_params
+from hil.errors import BusSpecError
+from reference_controllers.daemon import Stop, build_parser, parse_params, serve
 from reference_controllers.params import ParamError, ParamValue
 from reference_controllers.registry import CONTROLLERS, make_controller
 
@@ -452,20 +451,12 @@ def main(argv: list[str] | None = None) -> int:
     stop = Stop()
     signal.signal(signal.SIGTERM, stop)
     signal.signal(signal.SIGINT, stop)
-    controller.configure(dict(os.environ))
-    bus = open_bus(args.bus)
-    logging.getLogger("misbehaving").info("%s with defect %s on %s", args.controller,
-                                          args.defect, args.bus)
     try:
-        Daemon(controller, bus, sync=args.sync, period_s=period_s, stop=stop).run()
-    except Exception as exc:
-        logging.getLogger("misbehaving").error("controller failed: %s: %s",
-                                               type(exc).__name__, exc)
-        return 1
-    finally:
-        bus.shutdown()
-    return 0
-
+        return serve(controller, args.bus, sync=args.sync, period_s=period_s, stop=stop,
+                     logger=logging.getLogger("misbehaving"), log_traceback=False,
+                     started=f"{args.controller} with defect {args.defect} on {args.bus}")
+    except BusSpecError as exc:
+        parser.error(str(exc))
 
 if __name__ == "__main__":
     raise SystemExit(main())
