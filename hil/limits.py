@@ -38,19 +38,30 @@ _TRANSIENT_LAG_LIMIT_S = 0.5
 #: 1.5 + 1 + 1 = 3.5 s in either mode. (The reference reads ~1.2 s, sliding.)
 _SENSED_RESPONSE_LIMIT_S = 3.5
 
+#: flow.step.true_steady_state_error, from [F]: [F]'s flow modules read the weighed mass to
+#: within 1.2 % (Table 1, the largest of eight errors), and the rig draws each module's
+#: calibration error from that spread; a controller that holds its sensed flow within [F]'s
+#: 1 % (flow.step.steady_state_error) delivers within 1 + 1.2 = 2.2 % of the target.
+_TRUE_STEADY_STATE_LIMIT_PCT = 2.2
+
 
 _SPECS = (
     # fertilizer flow rig, [F]
     MeasurementSpec("flow.step.response_time", "s", "fertilizer",
-                    "time from the setpoint step until the true flow enters and stays in "
-                    "the +/-5 % band"),
+                    "time from the setpoint step until the true flow (mass per whole flute "
+                    "periods, ~1 s) enters and stays in the +/-5 % band"),
     MeasurementSpec("flow.step.sensed_response_time", "s", "fertilizer",
                     "as flow.step.response_time, on the flow the sensors report",
                     high=_SENSED_RESPONSE_LIMIT_S),
     MeasurementSpec("flow.step.overshoot", "%", "fertilizer",
                     "peak of the true flow beyond the target, % of the step"),
     MeasurementSpec("flow.step.steady_state_error", "%", "fertilizer",
-                    "|mean true flow over the last 10 s - target| / target"),
+                    "|mean sensed flow over the last 10 s - target| / target ([F]'s "
+                    "measurement: what the controller's own flow modules report)"),
+    MeasurementSpec("flow.step.true_steady_state_error", "%", "fertilizer",
+                    "as flow.step.steady_state_error, on the true flow (it adds the flow "
+                    "modules' calibration error, which no controller can see)",
+                    high=_TRUE_STEADY_STATE_LIMIT_PCT),
     MeasurementSpec("flow.bench.accuracy", "%", "fertilizer",
                     "[F] eq. 15 over a 50 s bench run against the weighed mass"),
     MeasurementSpec("flow.field.accuracy", "%", "fertilizer",

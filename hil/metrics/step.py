@@ -56,7 +56,11 @@ and leftover noise still lifts the peak: with white noise of SD ``sd`` (% of the
 typically and up to ~1.1 ``sd`` (20 seeds). Use ``filter_s`` and ``noise_sd`` to judge: an
 overshoot under ~``1.5 sd`` is not distinguishable from noise.
 ``filter_kind="mean"`` (a centred moving average of the same length) suits periodic ripple such as
-flute pulsation (choose ``filter_s`` = one ripple period); ``filter_kind="none"`` uses raw samples.
+flute pulsation (choose ``filter_s`` = a whole number of ripple periods); ``filter_kind="none"``
+uses raw samples. A mean is judged only where its window is whole: the last half window of the
+record is left out of the band, rise and peak tests (there the truncated window no longer spans
+whole ripple periods and lets the ripple through; a response must still hold its band up to
+half a window before the end).
 
 Resolution: times are sample times (the first sample inside, as step_info reports), so they are
 exact to one sample period; no interpolation, which would be wrong for held signals.
@@ -139,6 +143,15 @@ def _filter_length(t: np.ndarray, filter_s: float) -> int:
         return 1
     n = round(filter_s / float(np.median(np.diff(t))))
     return max(1, n if n % 2 else n + 1)
+
+
+def _whole_windows(t: np.ndarray, samples: int, kind: FilterKind) -> np.ndarray:
+    """The samples a filter of ``samples`` points is judged at: all, except for a mean the last
+    ``samples // 2``, whose centred window the end of the record truncates."""
+    keep = np.ones(t.shape, dtype=bool)
+    if kind == "mean" and samples > 1:
+        keep[max(0, t.size - samples // 2):] = False
+    return keep
 
 
 def _enter_and_stay(ts: np.ndarray, d: np.ndarray, step: float, band: float) -> float:
@@ -243,11 +256,16 @@ def step_response(t: np.ndarray, y: np.ndarray, *, t0: float, target: float,
     yf = smooth(y, n_filt, filter_kind)
     if filter_kind != "none" and n_filt < 3:
         notes.append(f"filter inactive: {filter_s} s is under 3 samples")
+    whole = _whole_windows(t, n_filt, filter_kind)
+    judged = after & whole
+    if int(judged.sum()) < 2:
+        raise ValueError(f"need at least 2 samples with a whole {filter_s} s filter window "
+                         f"in [{t0}, {end}] s")
 
-    ts = t[after] - t0
-    d = yf[after] - y0                  # filtered deviation from y0: what step_info is given
+    ts = t[judged] - t0
+    d = yf[judged] - y0                 # filtered deviation from y0: what step_info is given
     y_raw = y[after]
-    duration = end - t0
+    duration = float(ts[-1])
 
     # -- rise, response, settling, overshoot: step_info where it applies ---------------------
     reaches_high = bool(np.any(sgn * d >= sgn * hi_lim * step))
@@ -286,7 +304,7 @@ def step_response(t: np.ndarray, y: np.ndarray, *, t0: float, target: float,
 
     # -- our own: peak, delay, steady state, noise -------------------------------------------
     i_peak = int(np.argmax(sgn * d))
-    peak_value = float(yf[after][i_peak])
+    peak_value = float(yf[judged][i_peak])
     peak_time = float(ts[i_peak])
 
     left = np.nonzero(sgn * d > band * abs(step))[0]
@@ -295,10 +313,10 @@ def step_response(t: np.ndarray, y: np.ndarray, *, t0: float, target: float,
         notes.append(f"delay: the signal never left the ±{band:.0%} band around y0")
 
     start_ss = end - steady_window_s
-    in_ss = ts >= start_ss - t0
+    in_ss = t[after] >= start_ss       # the raw samples: the steady window runs to the end
     if start_ss < t0:
         ss_value = ss_err = math.nan
-        notes.append(f"steady-state error: window of {duration:.3g} s after the step is shorter "
+        notes.append(f"steady-state error: window of {end - t0:.3g} s after the step is shorter "
                      f"than steady_window_s = {steady_window_s} s")
     else:
         ss_value = float(np.mean(y_raw[in_ss]))
@@ -371,7 +389,7 @@ def recovery_time(t: np.ndarray, y: np.ndarray, *, t0: float, target: float,
         raise ValueError(f"need a non-zero target and a band in (0, 1): {target}, {band}")
     n = _filter_length(t, filter_s) if filter_kind != "none" else 1
     yf = smooth(y, n, filter_kind)
-    after = t >= t0
+    after = (t >= t0) & _whole_windows(t, n, filter_kind)
     if int(after.sum()) < 2:
         raise ValueError(f"need at least 2 samples after t0 = {t0}")
     ts = t[after] - t0

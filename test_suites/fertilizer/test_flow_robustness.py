@@ -18,8 +18,8 @@ import pytest
 
 from hil.metrics import accuracy_theta, judged_recovery, recovery_time, step_response
 from test_suites.fertilizer.traces import (
-    TRUE_FLOW_FILTER,
     delivered_and_target_g,
+    flow_filter,
     row_mean,
     trace,
 )
@@ -75,9 +75,9 @@ def test_speed_loss(hil_run, hil_measure) -> None:
 def test_saturation_recovery(hil_run, hil_measure) -> None:
     result = hil_run("fault-saturation-recovery")
     t, flow = row_mean(result, "flow_at_meter")
-    # the true flow as the step tests judge it (mass per second: a centred 1 s mean)
+    # the true flow as the step tests judge it (mass per whole flute periods, ~1 s)
     m = step_response(t, flow, t0=RETURN_S, target=RETURN_TARGET_GPS,
-                      **TRUE_FLOW_FILTER)
+                      **flow_filter(result, RETURN_S))
     value, never = judged_recovery(m.response_time_s, t, t0=RETURN_S)
     hil_measure("flow.fault.saturation.recovery_time", value, run=result,
                 note="; ".join([never, *m.notes] if never else m.notes))
@@ -93,7 +93,7 @@ def test_dut_restart(hil_run, hil_measure) -> None:
     result = hil_run("fault-dut-restart")
     t, flow = row_mean(result, "flow_at_meter")
     recovery = recovery_time(t, flow, t0=RESTART_S, target=RESTART_TARGET_GPS,
-                             **TRUE_FLOW_FILTER)
+                             **flow_filter(result, RESTART_S))
     restarts = [e for e in result.record["events"] if e["kind"] == "dut-restart"]
     recovery, never = judged_recovery(recovery, t, t0=RESTART_S)
     hil_measure("flow.restart.recovery_time", recovery, run=result,
@@ -112,7 +112,7 @@ def test_dut_silence(hil_run, hil_measure) -> None:
     result = hil_run("fault-controller-silent-recovery")
     t, flow = row_mean(result, "flow_at_meter")
     recovery = recovery_time(t, flow, t0=SILENCE_END_S, target=SILENCE_TARGET_GPS,
-                             **TRUE_FLOW_FILTER)
+                             **flow_filter(result, SILENCE_END_S))
     recovery, never = judged_recovery(recovery, t, t0=SILENCE_END_S)
     hil_measure("flow.silence.recovery_time", recovery, run=result,
                 note="5 s of cut wire from 13 s; the flow stops while the wire is cut"

@@ -238,3 +238,21 @@ def test_recovery_time_back_in_band_never_left_and_not_back() -> None:
     assert math.isnan(recovery_time(t, stuck, t0=10.0, target=34.0))
     late = np.where((t >= 10.0) & (t < 19.5), 20.0, 34.0)           # back for only 0.5 s
     assert math.isnan(recovery_time(t, late, t0=10.0, target=34.0, filter_kind="none"))
+
+
+def test_mean_over_whole_ripple_periods_is_judged_only_where_its_window_is_whole() -> None:
+    """A step to 23 with a 2.5 Hz ripple of 15 % (a fluted roller at 12.5 r/min): a mean over
+    three ripple periods (1.2 s) removes it; near the end of the record the truncated window
+    would let it through, so the last half window is not judged."""
+    ripple = 0.15 * 23.0 * np.sin(2 * math.pi * 2.5 * t + 3.2)
+    y = first_order(0.0, 23.0, tau=0.1) + np.where(t >= T0, ripple, 0.0)
+    m = step_response(t, y, t0=T0, target=23.0, y0=0.0, filter_kind="mean", filter_s=1.2)
+    assert m.overshoot_pct < 0.5
+    assert m.response_time_s < 1.0
+    # the truncated end windows do let the ripple through: judged there, it would be overshoot
+    from hil.metrics.step import smooth as smooth_
+    tail = smooth_(y, 121, "mean")[-60:]
+    assert (tail.max() - 23.0) / 23.0 * 100 > 2.5
+    # and a recovery judged the same way is not pushed to the end by the truncated windows
+    from hil.metrics import recovery_time
+    assert recovery_time(t, y, t0=T0, target=23.0, filter_kind="mean", filter_s=1.2) < 1.0
