@@ -20,6 +20,7 @@ void ppid_defaults(ppid_params_t *p, ppid_law_t law)
     p->ff_coeff = 4.586; /* the emulated meter's nominal map (plant_emulators/fertilizer/rig.toml) */
     p->ff_exponent = 0.6537;
     p->shaft_rpm_per_v = 6.0;    /* 10 V -> 3,000 motor r/min -> 60 shaft r/min */
+    p->ff_linear_below_rpm = 5.0; /* grams per revolution stop rising below it (issue #16) */
     if (law == PPID_LAW_PAPER_LITERAL) {
         /* [F]'s published gains; e1, e2 not published: ~4 % and ~20 % of the middle target */
         p->kp1 = 0.038;
@@ -53,6 +54,7 @@ size_t ppid_param_refs(ppid_params_t *p, param_ref_t refs[PPID_PARAM_COUNT])
         {"ff_exponent", &p->ff_exponent},
         {"shaft_rpm_per_v", &p->shaft_rpm_per_v},
         {"v_max", &p->v_max},
+        {"ff_linear_below_rpm", &p->ff_linear_below_rpm},
         {"kp1", &p->kp1},
         {"kp2", &p->kp2},
         {"kp3", &p->kp3},
@@ -66,7 +68,7 @@ size_t ppid_param_refs(ppid_params_t *p, param_ref_t refs[PPID_PARAM_COUNT])
         {"settle_periods", &p->settle_periods},
         {"ki_first", &p->ki_first},
     };
-    size_t n = p->law == PPID_LAW_OPEN_LOOP ? 4 : PPID_PARAM_COUNT;
+    size_t n = p->law == PPID_LAW_OPEN_LOOP ? 5 : PPID_PARAM_COUNT;
     memcpy(refs, table, n * sizeof table[0]);
     return n;
 }
@@ -109,6 +111,10 @@ double ppid_feedforward(const ppid_params_t *p, double target_gps)
         return 0.0;
     }
     double shaft_rpm = pow(target_gps / p->ff_coeff, 1.0 / p->ff_exponent);
+    if (shaft_rpm < p->ff_linear_below_rpm) {
+        double q_knee = p->ff_coeff * pow(p->ff_linear_below_rpm, p->ff_exponent);
+        shaft_rpm = target_gps / q_knee * p->ff_linear_below_rpm;
+    }
     return clamp(shaft_rpm / p->shaft_rpm_per_v, 0.0, p->v_max);
 }
 

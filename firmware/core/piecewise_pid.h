@@ -42,6 +42,7 @@ typedef struct {
     double ff_coeff;        /* meter's nominal map q = ff_coeff * n^ff_exponent */
     double ff_exponent;     /* (g/s per row, n shaft r/min) */
     double shaft_rpm_per_v; /* drive scaling: shaft r/min per volt (10 V -> 60 r/min: 6) */
+    double ff_linear_below_rpm; /* the map is linear below this shaft speed (0: never) */
 } ppid_params_t;
 
 typedef struct {
@@ -63,15 +64,15 @@ typedef struct {
     uint8_t segment;
 } ppid_output_t;
 
-#define PPID_PARAM_COUNT 16
+#define PPID_PARAM_COUNT 17
 
 /* Defaults of docs/reference-controllers.md for `law` (thresholds and gains differ per law). */
 void ppid_defaults(ppid_params_t *p, ppid_law_t law);
 
 /* Fill `refs` with the named parameters of `p`; returns the count (at most PPID_PARAM_COUNT).
  * Names (those of the Python build): kp1 kp2 kp3 ki1 ki2 kd e1 e2 km c_max settle_periods
- * ki_first ff_coeff ff_exponent shaft_rpm_per_v v_max; the open-loop law has only the feedforward ones
- * (ff_coeff ff_exponent shaft_rpm_per_v v_max). */
+ * ki_first ff_coeff ff_exponent shaft_rpm_per_v v_max ff_linear_below_rpm; the open-loop law has
+ * only the feedforward ones (ff_coeff ff_exponent shaft_rpm_per_v v_max ff_linear_below_rpm). */
 size_t ppid_param_refs(ppid_params_t *p, param_ref_t refs[PPID_PARAM_COUNT]);
 
 /* "physical", "paper-literal" or "open-loop" (also with '_' for '-'); false if unknown. */
@@ -80,8 +81,9 @@ const char *ppid_law_name(ppid_law_t law);
 
 void ppid_reset(ppid_state_t *s);
 
-/* ff(Q) = clamp((Q / ff_coeff)^(1 / ff_exponent) / shaft_rpm_per_v, 0, v_max) for Q > 0,
- * else 0. */
+/* ff(Q) = clamp(n(Q) / shaft_rpm_per_v, 0, v_max) for Q > 0, else 0, with
+ * n(Q) = (Q / ff_coeff)^(1 / ff_exponent) down to the knee n_k = ff_linear_below_rpm and
+ * n(Q) = Q / (ff_coeff * n_k^ff_exponent) * n_k below it (a flute holds all it can). */
 double ppid_feedforward(const ppid_params_t *p, double target_gps);
 
 /* One control step. target_gps: per-row target; measured_gps: mean of the valid rows;

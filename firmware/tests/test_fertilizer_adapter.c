@@ -203,9 +203,11 @@ static void test_param_names(void)
     /* the open-loop law takes only the feedforward keys (and the adapter's) */
     fert_config_defaults(&cfg, PPID_LAW_OPEN_LOOP);
     n = fert_param_refs(&cfg, refs);
-    CHECK_INT(n, 6);
+    CHECK_INT(n, 7);
     CHECK(param_set(refs, n, "ki1", "0.5") == PARAM_UNKNOWN);
     CHECK(param_set(refs, n, "v_max", "8") == PARAM_OK);
+    CHECK(param_set(refs, n, "ff_linear_below_rpm", "4") == PARAM_OK
+          && cfg.core.ff_linear_below_rpm == 4.0);
 }
 
 static void test_field_target(void)

@@ -4,7 +4,8 @@
 
 #define TOL 1e-12
 
-/* easy numbers: ff(Q) = (Q / 4)^2 / 2, so ff(8) = 2 V and ff(10) = 3.125 V */
+/* easy numbers: ff(Q) = (Q / 4)^2 / 2, so ff(8) = 2 V and ff(10) = 3.125 V (the power law all
+ * the way down: no knee) */
 static ppid_params_t easy(ppid_law_t law)
 {
     ppid_params_t p;
@@ -13,6 +14,7 @@ static ppid_params_t easy(ppid_law_t law)
     p.ff_exponent = 0.5;
     p.shaft_rpm_per_v = 2.0;
     p.v_max = 10.0;
+    p.ff_linear_below_rpm = 0.0;
     return p;
 }
 
@@ -35,6 +37,20 @@ static void test_defaults(void)
     CHECK_NEAR(p.c_max, 0.5, 0);
     CHECK_NEAR(p.shaft_rpm_per_v, 6.0, 0);
     CHECK_NEAR(p.v_max, 10.0, 0);
+}
+
+static void test_feedforward_knee(void)
+{
+    /* knee at 4 r/min: q(4) = 4 * 4^0.5 = 8 g/s; above it the power law, below it linear in
+     * the shaft speed: 4 g/s -> 2 r/min -> 1 V (the power law would say 0.5 V) */
+    ppid_params_t p = easy(PPID_LAW_OPEN_LOOP);
+    p.ff_linear_below_rpm = 4.0;
+    CHECK_NEAR(ppid_feedforward(&p, 10.0), 3.125, TOL);
+    CHECK_NEAR(ppid_feedforward(&p, 8.0), 2.0, TOL);
+    CHECK_NEAR(ppid_feedforward(&p, 4.0), 1.0, TOL);
+    CHECK_NEAR(ppid_feedforward(&p, 2.0), 0.5, TOL);
+    ppid_defaults(&p, PPID_LAW_PHYSICAL);
+    CHECK_NEAR(p.ff_linear_below_rpm, 5.0, 0);
 }
 
 static void test_feedforward(void)
@@ -281,7 +297,7 @@ static void test_law_names(void)
     CHECK(ppid_law_name(PPID_LAW_OPEN_LOOP)[0] == 'o');
 }
 
-TEST_MAIN("piecewise_pid", test_defaults, test_feedforward, test_open_loop_ignores_sensor,
+TEST_MAIN("piecewise_pid", test_defaults, test_feedforward, test_feedforward_knee, test_open_loop_ignores_sensor,
           test_paper_literal_sequence, test_segment_boundaries, test_physical_sequence,
           test_physical_settle_gate, test_physical_integral_clamp, test_physical_volts_clamp,
           test_physical_anti_windup, test_law_names)

@@ -48,7 +48,7 @@ SYNC_ID = 0x080
 #: J1939 "not available" speeds decode above the signal's valid maximum
 MAX_VALID_SPEED_MPS = 64.255
 STATUS_EVERY = 10
-OPEN_LOOP_KEYS = ("ff_coeff", "ff_exponent", "shaft_rpm_per_v", "v_max")
+OPEN_LOOP_KEYS = ("ff_coeff", "ff_exponent", "shaft_rpm_per_v", "v_max", "ff_linear_below_rpm")
 
 
 @dataclass(frozen=True)

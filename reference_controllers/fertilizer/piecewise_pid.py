@@ -41,8 +41,9 @@ class PiecewisePidParams:
     after a target jump during which reports are ignored: their windows still hold the flow
     from before) and ``ki_first`` (the integral's gain on the first update after a reset: the
     meter factor learnt from the first clean report) by physical mode only. The feedforward
-    is the meter's nominal map ``q = ff_coeff·n^ff_exponent`` g/s per row (n shaft r/min)
-    and the drive's ``shaft_rpm_per_v``.
+    is the meter's nominal map ``q = ff_coeff·n^ff_exponent`` g/s per row (n shaft r/min),
+    linear below ``ff_linear_below_rpm`` (0: the power law all the way down), and the
+    drive's ``shaft_rpm_per_v``.
     """
 
     mode: str
@@ -62,6 +63,11 @@ class PiecewisePidParams:
     ff_exponent: float = 0.6537
     shaft_rpm_per_v: float = 6.0
     v_max: float = 10.0
+    #: below this shaft speed a flute holds all it can: the grams per revolution stop rising
+    #: and the map is linear (the meter's own physics, as the rig documents it for its meter;
+    #: a power law extrapolated below it asks for ~13 % too little shaft speed at 3 r/min, and
+    #: the factor learnt there is wrong again once the speed is back up: issue #16)
+    ff_linear_below_rpm: float = 5.0
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -73,6 +79,8 @@ class PiecewisePidParams:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if self.c_max < 0.0:
             raise ValueError(f"c_max must be >= 0, got {self.c_max}")
+        if not self.ff_linear_below_rpm >= 0.0:
+            raise ValueError(f"ff_linear_below_rpm must be >= 0, got {self.ff_linear_below_rpm}")
         if not 0.0 <= self.ki_first <= 1.0:
             raise ValueError(f"ki_first must be within [0, 1], got {self.ki_first}")
         if self.settle_periods < 0.0:
@@ -105,12 +113,16 @@ class PiecewisePidParams:
 def feedforward_volts(target_gps: float, p: PiecewisePidParams) -> float:
     """The command that gives ``target_gps`` per row on the meter's nominal map.
 
-    ``ff(Q) = clamp((Q / c)^(1/p) / k_n, 0, v_max)`` for Q > 0, else 0 (the inverse of the
-    power-law fit of [F]'s 23/34/44 g/s at 12/21/32 r/min).
+    ``ff(Q) = clamp(n(Q) / k_n, 0, v_max)`` for Q > 0, else 0, where ``n(Q) = (Q / c)^(1/p)``
+    (the inverse of the power-law fit of [F]'s 23/34/44 g/s at 12/21/32 r/min) down to the
+    knee ``n_k = ff_linear_below_rpm``, and ``n(Q) = Q / (c·n_k^p) · n_k`` below it.
     """
     if not target_gps > 0.0:
         return 0.0
     shaft_rpm = math.pow(target_gps / p.ff_coeff, 1.0 / p.ff_exponent)
+    if shaft_rpm < p.ff_linear_below_rpm:
+        q_knee = p.ff_coeff * math.pow(p.ff_linear_below_rpm, p.ff_exponent)
+        shaft_rpm = target_gps / q_knee * p.ff_linear_below_rpm
     return _clamp(shaft_rpm / p.shaft_rpm_per_v, 0.0, p.v_max)
 
 

@@ -4,7 +4,8 @@ The inputs do not depend on the controller's outputs (a replay feeds them as the
 they look like what the adapters feed the cores on the rigs, from seeded numpy generators:
 
 * fertilizer (320 steps of 0.1 s): target 0 → 23 → 44 → 34 g/s, a reset to 0, then
-  23 → 44 → 34 again and a target above the meter's range (80 g/s: the feedforward clamps);
+  23 → 44 → 34 again, 8 g/s (below the map's knee: the linear part of the feedforward) and a
+  target above the meter's range (80 g/s: the feedforward clamps);
   the measured flow lags the target (first order, τ = 0.8 s) times a slowly varying delivery
   gain (±3 %) with sensor noise; a block sensor (a new report every 10th step) for the first
   half, a sliding one (every step) for the second; the measurement drops for a few steps
@@ -37,7 +38,7 @@ from reference_controllers.vectors import (
 
 FERTILIZER_SEED = 20230202     # [F]: Trans. CSAM 54(2)
 DEPTH_SEED = 20230111          # [D]: Trans. CSAM 54(S1)
-FEEDFORWARD_KEYS = ("ff_coeff", "ff_exponent", "shaft_rpm_per_v", "v_max")
+FEEDFORWARD_KEYS = ("ff_coeff", "ff_exponent", "shaft_rpm_per_v", "v_max", "ff_linear_below_rpm")
 
 
 @dataclass(frozen=True)
@@ -50,7 +51,7 @@ class FertilizerStep:
 
 def fertilizer_target(k: int) -> float:
     for end, target in ((10, 0.0), (70, 23.0), (120, 44.0), (160, 34.0), (170, 0.0),
-                        (220, 23.0), (260, 44.0), (300, 34.0)):
+                        (220, 23.0), (260, 44.0), (300, 34.0), (310, 8.0)):
         if k < end:
             return target
     return 80.0
