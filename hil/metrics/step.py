@@ -146,8 +146,11 @@ def _filter_length(t: np.ndarray, filter_s: float) -> int:
 
 
 def _whole_windows(t: np.ndarray, samples: int, kind: FilterKind) -> np.ndarray:
-    """The samples a filter of ``samples`` points is judged at: all, except for a mean the last
-    ``samples // 2``, whose centred window the end of the record truncates."""
+    """Mark the samples a filter of ``samples`` points is judged at.
+
+    All of them, except for a mean the last ``samples // 2``, whose centred window the end of
+    the record truncates.
+    """
     keep = np.ones(t.shape, dtype=bool)
     if kind == "mean" and samples > 1:
         keep[max(0, t.size - samples // 2):] = False

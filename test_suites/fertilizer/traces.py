@@ -49,7 +49,8 @@ def delivered_and_target_g(result: RunResult) -> tuple[float, float]:
 def flutes(result: RunResult) -> int:
     """The flutes per roller of the rig the run used (the packaged config and its overrides)."""
     overrides = result.record.get("rig_config_overrides") or {}
-    return load_rig_config(overrides=overrides, source="the run's rig_config_overrides").meter.flutes
+    config = load_rig_config(overrides=overrides, source="the run's rig_config_overrides")
+    return config.meter.flutes
 
 
 def flow_filter(result: RunResult, t0: float) -> dict[str, Any]:
