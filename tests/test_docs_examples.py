@@ -42,13 +42,17 @@ Where commands run, and the rules that adapt them (the only ones):
    firmware profile ``fertilizer-piecewise-pid-firmware``.
 3. **``hil bus serve``** runs in the background with ``--port 0`` (a free port, read from its
    "listening on" line); ``--port P`` in the later lines of the block, P being the port the serve
-   line asked for, becomes that port. The server is stopped (SIGINT) at the end of the block.
+   line asked for, becomes that port, and so does ``:P/`` inside a socketcand bus spec
+   (``socketcand:127.0.0.1:P/can0``). The server is stopped (SIGINT) at the end of the block.
 4. **``xdg-open FILE``** asserts that FILE exists and is not empty instead of opening it.
 5. **``hil qualify``** with the same arguments apart from ``--out`` runs once per test session:
    a later identical line gets a copy of the first one's output directory and its exit status
    (lockstep qualifications are bit-for-bit repeatable; this saves ~15 s per repeat).
 6. A line that needs a shell (``&&``, ``|``, ``>`` ...) is not run through one: it must be in
    ``SKIPPED`` or have a rule here.
+7. **A line ending in ``&``** (a process the example keeps running, such as the controller that
+   plays an outside ECU) runs in the background until the end of its block, then gets SIGTERM;
+   it must still be running then (a background process that died is a failed example).
 
 ``SKIPPED`` lists, per document, the lines that are not run, each with its reason. Any other
 line is run: a new example either runs or fails until it is listed, and a ``SKIPPED`` entry whose
@@ -453,6 +457,13 @@ class Server:
 
 
 @dataclass
+class Background:
+    proc: subprocess.Popen[bytes]
+    where: str
+    log: Path
+
+
+@dataclass
 class DocRunner:
     doc: str
     cwd: Path
@@ -461,6 +472,7 @@ class DocRunner:
     ran: list[str] = field(default_factory=list)
     skipped: list[str] = field(default_factory=list)
     python_blocks: int = 0
+    background: list[Background] = field(default_factory=list)
 
     def block(self, block: Block) -> None:
         if block.lang in SHELL_LANGS:
@@ -469,6 +481,7 @@ class DocRunner:
                 for line in shell_lines(block):
                     server = self.line(line, server) or server
             finally:
+                self.stop_background()
                 if server is not None:
                     self.stop(server)
         elif block.lang in ("python", "py"):
@@ -502,6 +515,11 @@ class DocRunner:
             i = argv.index("--port")
             if i + 1 < len(argv) and argv[i + 1] == server.asked_port:
                 argv[i + 1] = server.port
+        if server is not None:
+            argv = [t.replace(f":{server.asked_port}/", f":{server.port}/")
+                    if t.startswith("socketcand:") else t for t in argv]
+        if argv and argv[-1] == "&":
+            return self.start_background(line, argv[:-1])
         assert not SHELL_OPERATORS & set(argv), (
             f"{line.where}\n  needs a shell: give it a rule in this test or list it in SKIPPED")
         if argv[:3] == ["hil", "bus", "serve"]:
@@ -547,6 +565,30 @@ class DocRunner:
         server = Server(proc, asked, "", log)
         self.stop(server)
         pytest.fail(f"{line.where}\n  the server did not start:\n{log.read_text()}")
+
+    def start_background(self, line: ShellLine, argv: list[str]) -> None:
+        log = self.scratch / f"background-{line.lineno}.out"
+        with log.open("wb") as sink:
+            proc = subprocess.Popen(argv, cwd=self.cwd, env=child_env(), stdout=sink,
+                                    stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+        self.background.append(Background(proc, line.where, log))
+        self.ran.append(f"{line.where}  [background until the end of the block]")
+
+    def stop_background(self) -> None:
+        died = []
+        while self.background:
+            job = self.background.pop()
+            if job.proc.poll() is not None:
+                died.append(f"{job.where}\n  exited {job.proc.returncode} before the end of "
+                            f"its block:\n{job.log.read_text(errors='replace')[-3000:]}")
+                continue
+            job.proc.terminate()
+            try:
+                job.proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                job.proc.kill()
+                job.proc.wait(timeout=10)
+        assert not died, "\n".join(died)
 
     @staticmethod
     def stop(server: Server) -> None:
