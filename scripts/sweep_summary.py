@@ -1,9 +1,9 @@
-"""Summarise ``scripts/seed_sweep.py`` output: pass rate with its Clopper-Pearson bound, the
+"""Summarise a campaign's ``samples.jsonl``: pass rate with its Clopper-Pearson bound, the
 failures, each measurement's seed-to-seed spread and its closest approach to its limit.
 
 Usage::
 
-    python scripts/sweep_summary.py /tmp/sweep_fert/sweep.jsonl [--tolerances ci/tolerances.toml]
+    python scripts/sweep_summary.py campaign/samples.jsonl [--tolerances ci/tolerances.toml]
 
 With ``--tolerances`` it also prints, for every measurement the bands name, the band beside the
 seed-to-seed standard deviation (a band narrower than the spread flags noise, not regressions,
@@ -81,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
         for m in r["measurements"]:
             key = _key(m)
             if m["outcome"] not in ("pass", "info", "marginal"):
-                print(f"  seed {r['seed']}: {key} = {m['value']} {m['outcome']} {m['note'] or ''}")
+                print(f"  seed {r['seed']}: {key} = {m['value']} {m['outcome']} {m.get('note') or ''}")
             v = m["value"]
             if v is None:
                 continue

@@ -130,6 +130,14 @@ SKIPPED: dict[tuple[str, str], str] = {
     ("docs/guide/kernel-can.md", "bash scripts/kernel-can.sh --check"):
         "its exit status depends on the machine (0 where the guest starts, 3 where it cannot); "
         "tests/kernel checks both paths",
+    ("docs/guide/reference-qualification.md",
+     "hil campaign dut_profiles/fertilizer-piecewise-pid-daemon.toml --bus inline --dispersion "
+     "none --suite fast,robustness --samples 300 --seed 8100000 --out camp-fert"):
+        "300 samples of fast + robustness take ~25 minutes on two cores: the page's evidence; "
+        "tests/hil/campaign runs campaigns of 2-4 samples",
+    ("docs/guide/reference-qualification.md",
+     "python scripts/sweep_summary.py camp-fert/samples.jsonl --tolerances ci/tolerances.toml"):
+        "reads the 300-sample campaign of the line above",
     ("docs/guide/physical-ecu.md",
      "hil qualify dut_profiles/physical/fertilizer-physical-ecu.toml --clock realtime "
      "--bus socketcan:can0 --out out/ecu"):
