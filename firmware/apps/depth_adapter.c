@@ -166,6 +166,7 @@ size_t depth_on_frame(depth_adapter_t *a, const hal_can_frame_t *f, double now_s
             a->have_x = true;
             a->last_x_mv = x_mv;
             a->x_changed_at_s = now_s;
+            rhold_mark(&a->hold); /* a sign of life: the mean so far is trusted */
         }
         double depth = -0.065 * x_mv + 270.35;
         a->depth_mm = a->have_depth ? a->depth_mm + DEPTH_FILTER * (depth - a->depth_mm)
@@ -288,11 +289,11 @@ size_t depth_step(depth_adapter_t *a, double now_s, hal_can_frame_t out[DEPTH_MA
         }
     } else if (!info->enabled) {
         rhold_reset(&a->hold);
-    } else if (operation_enabled(a) && a->have_position && a->hold.has_mean) {
+    } else if (operation_enabled(a) && a->have_position && a->hold.has_target) {
         info->holding = true;
         info->out.speed_mm_s = rhold_speed(&a->cfg.hold, &a->hold, a->position_mm);
     }
-    info->hold_mean_mm = a->hold.mean_mm;
+    info->hold_target_mm = a->hold.target_mm;
     info->controlword = cw;
     /* 0.01 mm/s; round half to even as Python's round() */
     info->target_velocity = (int32_t)rint(info->out.speed_mm_s * 100.0);
@@ -315,7 +316,7 @@ size_t depth_step(depth_adapter_t *a, double now_s, hal_can_frame_t out[DEPTH_MA
         st.dc_roller_position_command =
             info->holding
                 ? sowing_depth_depth_controller_status_dc_roller_position_command_encode(
-                      rint(clamp(a->hold.mean_mm, 0.0, 100.0) * 100.0) / 100.0)
+                      rint(clamp(a->hold.target_mm, 0.0, 100.0) * 100.0) / 100.0)
                 : 0;
         if (drive_fault) {
             st.dc_state = DC_FAULT;

@@ -20,10 +20,11 @@
  * (0.2 s), so a frozen output, or one that stopped sending, is a dead sensor,
  * not a steady depth. Where the roller is held (roller_hold.h): while the depth is valid and
  * control enabled, the adapter tracks the mean rod position (TPDO1's Position actual value,
- * tau = 2 s); when the depth turns invalid while control stays enabled (and the drive is in
- * Operation enabled) it drives the rod back to that mean, speed = clamp(5/s (m - p),
- * +-10 mm/s), and holds it there, the status frame carrying the mean as
- * DC_RollerPositionCommand (0 otherwise); control disabled forgets the mean and commands 0.
+ * tau = 2 s), and takes it as the hold target at each new X voltage (the sensor's last sign of
+ * life); when the depth turns invalid while control stays enabled (and the drive is in
+ * Operation enabled) it drives the rod back to that target, speed = clamp(5/s (h - p),
+ * +-10 mm/s), and holds it there, the status frame carrying the target as
+ * DC_RollerPositionCommand (0 otherwise); control disabled forgets both and commands 0.
  * Parameters hold_time_constant_s, hold_gain_per_s, hold_speed_mm_s. As in the Python
  * build. */
 #ifndef AGRIHIL_DEPTH_ADAPTER_H
@@ -64,8 +65,8 @@ typedef struct {
     bool frozen; /* the X voltage has not changed for more than frozen_after_s */
     bool enabled;
     bool speed_known;
-    bool holding;          /* enabled, depth invalid: the rod is driven to the hold mean */
-    double hold_mean_mm;   /* the hold's mean rod position (valid if a.hold.has_mean) */
+    bool holding;          /* enabled, depth invalid: the rod is driven to the hold target */
+    double hold_target_mm; /* the hold target (valid if a.hold.has_target) */
     uint16_t controlword;
     int32_t target_velocity; /* 0.01 mm/s */
     fpid_output_t out;

@@ -32,6 +32,12 @@ void rhold_reset(rhold_state_t *s)
     memset(s, 0, sizeof *s);
 }
 
+void rhold_mark(rhold_state_t *s)
+{
+    s->has_target = s->has_mean;
+    s->target_mm = s->mean_mm;
+}
+
 void rhold_track(const rhold_params_t *p, rhold_state_t *s, double position_mm,
                  double period_s)
 {
@@ -46,9 +52,9 @@ void rhold_track(const rhold_params_t *p, rhold_state_t *s, double position_mm,
 
 double rhold_speed(const rhold_params_t *p, const rhold_state_t *s, double position_mm)
 {
-    if (!s->has_mean) {
+    if (!s->has_target) {
         return 0.0;
     }
-    return fmin(fmax(p->gain_per_s * (s->mean_mm - position_mm), -p->speed_mm_s),
+    return fmin(fmax(p->gain_per_s * (s->target_mm - position_mm), -p->speed_mm_s),
                 p->speed_mm_s);
 }

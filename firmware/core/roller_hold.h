@@ -7,7 +7,12 @@
  * best estimate of that position. So, with p the drive's Position actual value (0x6064, TPDO1):
  *
  *   tracking (depth valid, control enabled):  m += min(1, T/tau) (p - m)   (first: m = p)
- *   holding  (depth invalid, enabled):        v  = clamp(k (m - p), -v_hold, v_hold)
+ *   each new X voltage (a sign of life):      h  = m
+ *   holding  (depth invalid, enabled):        v  = clamp(k (h - p), -v_hold, v_hold)
+ *
+ * The target h is the mean at the sensor's last sign of life: a frozen output is recognised
+ * only frozen_after_s after its last change, and the positions reached meanwhile, steering on
+ * a dead reading, say nothing about the right one.
  *
  * Defaults, from the rig's physics (the Python module says more): tau = 2 s attenuates the
  * 0.5-1 Hz excursions to 8-16 % and follows the soil (>= 4.5 s correlation at 4 km/h); k = 5 /s
@@ -27,7 +32,9 @@ typedef struct {
 
 typedef struct {
     bool has_mean;
-    double mean_mm; /* m: mean rod position of valid control, mm */
+    double mean_mm;   /* m: mean rod position of valid control, mm */
+    bool has_target;
+    double target_mm; /* h: the mean at the depth sensor's last sign of life, mm */
 } rhold_state_t;
 
 void rhold_defaults(rhold_params_t *p);
@@ -35,14 +42,17 @@ void rhold_defaults(rhold_params_t *p);
 /* 0, or -1 with a message in err if a parameter is out of its range. */
 int rhold_check(const rhold_params_t *p, const char **err);
 
-/* Forget the mean (control was switched off). */
+/* Forget the mean and the target (control was switched off). */
 void rhold_reset(rhold_state_t *s);
+
+/* The depth sensor showed a sign of life (a new reading): the mean so far is the target. */
+void rhold_mark(rhold_state_t *s);
 
 /* One step of valid control at rod position position_mm, period period_s: update the mean. */
 void rhold_track(const rhold_params_t *p, rhold_state_t *s, double position_mm,
                  double period_s);
 
-/* The rod speed (mm/s, positive extends) that drives the rod to the mean; 0 without a mean. */
+/* The rod speed (mm/s, positive extends) that drives the rod to the target; 0 without one. */
 double rhold_speed(const rhold_params_t *p, const rhold_state_t *s, double position_mm);
 
 #endif

@@ -474,15 +474,19 @@ static void test_hold_at_mean_position(void)
             CHECK_INT(cmd, 0); /* regulating: no position command */
         }
     }
-    CHECK(a.hold.has_mean);
+    CHECK(a.hold.has_mean && a.hold.has_target);
     CHECK_NEAR(a.hold.mean_mm, 41.0, 0.01);
-    double mean = a.hold.mean_mm;
-    /* the sensor fails with the rod at 39.00 mm: drive back at 5/s * (m - p), ~10 mm/s */
+    /* the target: the mean when the last new X voltage came (before step 999's tracking) */
+    double mean = a.hold.target_mm;
+    CHECK_NEAR(mean, 41.0, 0.01);
+    /* the sensor fails with the rod at 39.00 mm: drive back at 5/s * (h - p), ~10 mm/s */
+    double last_mean = a.hold.mean_mm;
     long long v = hold_step(1000, 0x0237, 3900, 1, 1.0, &cmd);
     CHECK(a.last.holding && !a.last.valid);
     CHECK_INT(v, (long long)rint(5.0 * (mean - 39.0) * 100.0));
     CHECK_INT(cmd, (long long)rint(mean * 100.0)); /* the status carries the hold target */
-    CHECK_NEAR(a.hold.mean_mm, mean, 0); /* frozen while the depth is invalid */
+    CHECK_NEAR(a.hold.mean_mm, last_mean, 0); /* no tracking while the depth is invalid */
+    CHECK_NEAR(a.hold.target_mm, mean, 0);
     /* past the mean: back the other way; far off: bounded at 10 mm/s */
     CHECK_INT(hold_step(1001, 0x0237, 4150, 1, 1.0, &cmd),
               (long long)rint(5.0 * (mean - 41.5) * 100.0));
@@ -494,13 +498,36 @@ static void test_hold_at_mean_position(void)
     /* standstill (control disabled): 0 as before, and the mean is forgotten, so a machine
      * that drives off again with the sensor still dead holds where the roller is */
     CHECK_INT(hold_step(1005, 0x0237, 3900, 1, 0.0, &cmd), 0);
-    CHECK(!a.last.holding && !a.hold.has_mean);
+    CHECK(!a.last.holding && !a.hold.has_mean && !a.hold.has_target);
     CHECK_INT(hold_step(1006, 0x0237, 3900, 1, 1.0, &cmd), 0);
     CHECK(!a.last.holding);
     /* valid again: tracking starts afresh from the rod's position */
     hold_step(1007, 0x0237, 4321, 0, 1.0, &cmd);
     CHECK(a.last.valid && a.hold.has_mean);
     CHECK_NEAR(a.hold.mean_mm, 43.21, 0);
+}
+
+/* A frozen X voltage: the loop steers on the dead reading for 0.2 s and the mean follows the
+ * rod it moves; the hold target is the mean at the last new X voltage, before any of that. */
+static void test_hold_target_at_last_sign_of_life(void)
+{
+    make_ready(1.0);
+    int fault;
+    for (int i = 0; i < 300; i++) { /* live X, the rod at 40.00 mm */
+        hal_can_frame_t pos = tpdo1_at(0x0237, 4000);
+        depth_on_frame(&a, &pos, (double)i * 0.01, out);
+        step_at(i, 3700 + i % 2, 0, &fault);
+    }
+    CHECK_NEAR(a.hold.mean_mm, 40.0, 0);
+    for (int i = 300; i < 322; i++) { /* X frozen at 3701 since 2.99 s, the rod at 38 mm */
+        hal_can_frame_t pos = tpdo1_at(0x0237, 3800);
+        depth_on_frame(&a, &pos, (double)i * 0.01, out);
+        step_at(i, 3701, 0, &fault);
+    }
+    CHECK(a.last.frozen && a.last.holding);
+    CHECK(a.hold.mean_mm < 39.99); /* the mean took 0.2 s of steering on a dead reading */
+    CHECK_NEAR(a.hold.target_mm, 40.0, 0);
+    CHECK_INT(a.last.target_velocity, 1000); /* 5/s * (40 - 38) = 10 mm/s */
 }
 
 /* The hold loop against a rod that follows its speed command with the position one step old
@@ -513,6 +540,7 @@ static void test_hold_loop_no_overshoot(void)
     rhold_state_t s;
     rhold_reset(&s);
     rhold_track(&p, &s, 41.0, 0.01);
+    rhold_mark(&s);
     double x = 39.0, seen = 39.0, max_x = x;
     int settled_at = -1;
     for (int k = 0; k < 300; k++) {
@@ -564,4 +592,5 @@ static void test_hold_off_and_config(void)
 TEST_MAIN("depth_adapter", test_nmt_start, test_controlwords, test_depth_filter,
           test_control_step, test_enable_conditions, test_frozen_inclinometer,
           test_frozen_check_off, test_bad_status_holds, test_config_check,
-          test_hold_at_mean_position, test_hold_loop_no_overshoot, test_hold_off_and_config)
+          test_hold_at_mean_position, test_hold_target_at_last_sign_of_life,
+          test_hold_loop_no_overshoot, test_hold_off_and_config)

@@ -14,20 +14,20 @@ rig's DBC (:class:`FrameCodec`), the drive's PDOs through canopen PDO maps read 
 Depth: the inclinometer's X voltage with status "ok", eq. 13 ``depth = -0.065·x + 270.35``,
 filtered ``d += 0.2·(depth - d)`` per frame (the first frame sets d). The depth is invalid
 (the PID resets and the roller is held, see below; the status frame says SensorFault) while
-the status is
-not "ok", and while the X voltage has not changed for more than ``frozen_after_s``: a live
-inclinometer never repeats one ADC count for 0.2 s, 20 reports (its noise alone is ~1.7 counts
-SD at standstill, 2-5 on a moving machine), so a frozen output or one that stopped sending is a
-dead sensor, not a steady depth. Enabled: the terminal
-says on + automatic and a ground speed >= ``min_speed_mps`` is known (GBSD or GNSS, see
+the status is not "ok", and while the X voltage has not changed for more than
+``frozen_after_s``: a live inclinometer never repeats one ADC count for 0.2 s, 20 reports (its
+noise alone is ~1.7 counts SD at standstill, 2-5 on a moving machine), so a frozen output or
+one that stopped sending is a dead sensor, not a steady depth. Enabled: the terminal says on +
+automatic and a ground speed >= ``min_speed_mps`` is known (GBSD or GNSS, see
 :mod:`.ground_speed`).
 
 Where the roller is held (:mod:`.roller_hold`): while the depth is valid and control enabled,
-the adapter tracks the mean rod position (TPDO1's Position actual value 0x6064, tau = 2 s);
-when the depth turns invalid while control stays enabled (and the drive is in Operation
-enabled) it drives the rod back to that mean, ``speed = clamp(5/s·(m - p), ±10 mm/s)``, and
-holds it there; the status frame carries the mean as RollerPositionCommand (0 otherwise).
-Control disabled forgets the mean and commands 0 (the roller stays where it is).
+the adapter tracks the mean rod position (TPDO1's Position actual value 0x6064, tau = 2 s),
+and takes it as the hold target at each new X voltage (the sensor's last sign of life); when
+the depth turns invalid while control stays enabled (and the drive is in Operation enabled)
+it drives the rod back to that target, ``speed = clamp(5/s·(h - p), ±10 mm/s)``, and holds
+it there; the status frame carries the target as RollerPositionCommand (0 otherwise).
+Control disabled forgets mean and target and commands 0 (the roller stays where it is).
 """
 
 from __future__ import annotations
@@ -226,6 +226,7 @@ class DepthController(Controller):
             if self.depth_ok:
                 if frame.x_mv != self.last_x_mv:
                     self.last_x_mv, self.x_changed_at_s = frame.x_mv, self.now_s
+                    self.hold.mark()         # a sign of life: the mean so far is trusted
                 depth = calibration_depth_mm(frame.x_mv)
                 self.depth_mm = depth if self.depth_mm is None else (
                     self.depth_mm + DEPTH_FILTER * (depth - self.depth_mm))
@@ -286,7 +287,7 @@ class DepthController(Controller):
         elif not enabled:
             self.hold.reset()
         elif (is_operation_enabled(self.statusword) and self.position_mm is not None
-              and self.hold.mean_mm is not None):
+              and self.hold.target_mm is not None):
             self.holding = True
             speed = self.hold.speed(self.position_mm)
         self.speed_mm_s, self.gains = speed, (kp, ki, kd)
@@ -320,8 +321,8 @@ class DepthController(Controller):
         # holding: the hold target in whole 0.01 mm (half to even, as the C build); regulating
         # in profile velocity mode there is no position command: 0
         command = 0.0
-        if self.holding and self.hold.mean_mm is not None:
-            command = round(min(max(self.hold.mean_mm, 0.0), 100.0) * 100.0) / 100.0
+        if self.holding and self.hold.target_mm is not None:
+            command = round(min(max(self.hold.target_mm, 0.0), 100.0) * 100.0) / 100.0
         return self.codec.encode(ControllerStatus(
             measured_depth_mm=round(depth, 1), roller_position_command_mm=command, state=state,
             sensor_fault=int(self.depth_mm is None or not self.depth_ok or frozen),

@@ -10,7 +10,13 @@ TPDO1) and, when the depth turns invalid on a running machine, drives the rod ba
 a bounded proportional position loop in the drive's profile-velocity mode::
 
     tracking (depth valid, control enabled):  m += min(1, T/tau) * (p - m)   (first: m = p)
-    holding  (depth invalid, enabled):        v  = clamp(k * (m - p), -v_hold, v_hold)
+    each new X voltage (a sign of life):      h  = m
+    holding  (depth invalid, enabled):        v  = clamp(k * (h - p), -v_hold, v_hold)
+
+The hold target ``h`` is the mean as it was at the inclinometer's last sign of life, not at
+the moment it was declared dead: a frozen output is recognised only ``frozen_after_s`` (0.2 s)
+after its last change, and the positions the loop reached meanwhile, steering on a dead
+reading, say nothing about the right one.
 
 Constants (the defaults of :class:`~reference_controllers.sowing_depth.adapter.DepthAdapterParams`,
 chosen from the rig's physics, not from seeds):
@@ -33,6 +39,9 @@ The C build (``firmware/core/roller_hold.c``) computes the same in the same orde
 >>> hold = RollerHold(RollerHoldParams())
 >>> hold.track(40.0, 0.01); hold.track(42.0, 0.01); round(hold.mean_mm, 12)
 40.01
+>>> hold.speed(39.0)                       # no sign of life seen with a mean: no target
+0.0
+>>> hold.mark(); hold.track(44.0, 0.01)    # the target stays the mean at the mark
 >>> round(hold.speed(39.0), 12)            # 5 /s * 1.01 mm
 5.05
 >>> hold.speed(20.0)                       # bounded
@@ -76,7 +85,8 @@ class RollerHoldParams:
 
 
 class RollerHold:
-    """The mean rod position of valid control, and the loop that holds the rod there.
+    """The mean rod position of valid control, and the loop that holds the rod at the mean
+    of the depth sensor's last sign of life.
 
     Parameters
     ----------
@@ -87,10 +97,19 @@ class RollerHold:
     def __init__(self, params: RollerHoldParams) -> None:
         self.params = params
         self.mean_mm: float | None = None
+        #: the hold target: the mean at the depth sensor's last sign of life
+        self.target_mm: float | None = None
 
     def reset(self) -> None:
-        """Forget the mean (control was switched off: it no longer says where to hold)."""
+        """Forget the mean and the target (control was switched off: they no longer say
+        where to hold)."""
         self.mean_mm = None
+        self.target_mm = None
+
+    def mark(self) -> None:
+        """The depth sensor showed a sign of life (a new reading): the mean so far becomes
+        the hold target."""
+        self.target_mm = self.mean_mm
 
     def track(self, position_mm: float, period_s: float) -> None:
         """One step of valid control at rod position ``position_mm``: update the mean."""
@@ -101,10 +120,10 @@ class RollerHold:
             self.mean_mm = self.mean_mm + alpha * (position_mm - self.mean_mm)
 
     def speed(self, position_mm: float) -> float:
-        """The rod speed (mm/s, positive extends) that drives the rod to the mean; 0 without
-        a mean."""
-        if self.mean_mm is None:
+        """The rod speed (mm/s, positive extends) that drives the rod to the hold target; 0
+        without a target."""
+        if self.target_mm is None:
             return 0.0
         p = self.params
-        return _clamp(p.gain_per_s * (self.mean_mm - position_mm), -p.speed_mm_s,
+        return _clamp(p.gain_per_s * (self.target_mm - position_mm), -p.speed_mm_s,
                       p.speed_mm_s)

@@ -62,13 +62,16 @@ def test_holds_the_rod_at_its_mean_position_while_the_depth_is_invalid() -> None
         _, command = _step(ctl, i, 4200 if i % 2 else 4000)
         assert not ctl.holding and command in (None, 0.0)
     assert ctl.hold.mean_mm == pytest.approx(41.0, abs=0.01)
-    mean = ctl.hold.mean_mm
-    # the sensor fails with the rod at 39.00 mm: back at 5/s·(m - p), and the status frame
+    # the target: the mean when the last new X voltage came (before step 999's tracking)
+    mean, last_mean = ctl.hold.target_mm, ctl.hold.mean_mm
+    assert mean == pytest.approx(41.0, abs=0.01)
+    # the sensor fails with the rod at 39.00 mm: back at 5/s·(h - p), and the status frame
     # carries the hold target
     velocity, command = _step(ctl, 1000, 3900, x_status=1)
     assert ctl.holding and velocity == round(5.0 * (mean - 39.0) * 100.0)
     assert command == pytest.approx(round(mean * 100.0) / 100.0, abs=1e-9)
-    assert ctl.hold.mean_mm == mean                     # frozen while the depth is invalid
+    assert ctl.hold.mean_mm == last_mean                # no tracking while invalid
+    assert ctl.hold.target_mm == mean
     assert _step(ctl, 1001, 4150, x_status=1)[0] == round(5.0 * (mean - 41.5) * 100.0)
     assert _step(ctl, 1002, 2000, x_status=1)[0] == 1000        # bounded at 10 mm/s
     assert _step(ctl, 1003, 9000, x_status=1)[0] == -1000
@@ -78,27 +81,28 @@ def test_holds_the_rod_at_its_mean_position_while_the_depth_is_invalid() -> None
     # standstill: 0 as before and the mean is forgotten, so a machine that drives off with
     # the sensor still dead holds the roller where it is
     assert _step(ctl, 1005, 3900, x_status=1, speed_mps=0.0)[0] == 0
-    assert ctl.hold.mean_mm is None
+    assert ctl.hold.mean_mm is None and ctl.hold.target_mm is None
     assert _step(ctl, 1006, 3900, x_status=1)[0] == 0
     # valid again: the mean starts afresh at the rod's position
     _step(ctl, 1007, 4321)
     assert ctl.hold.mean_mm == 43.21
 
 
-def test_a_frozen_inclinometer_is_held_at_the_mean_too() -> None:
+def test_a_frozen_inclinometer_is_held_at_the_mean_of_its_last_sign_of_life() -> None:
+    """The loop steers on the frozen reading for 0.2 s and the mean follows the rod it
+    moves; the hold target is the mean at the last new X voltage, before any of that."""
     ctl = _controller()
     for i in range(300):
-        _step(ctl, i, 4000 + 10 * (i % 20))             # 40.0 ... 41.9 mm
-    before = ctl.hold.mean_mm
-    assert before is not None and 40.0 < before < 41.9
+        _step(ctl, i, 4000)
+    assert ctl.hold.mean_mm == 40.0
     for _ in range(22):                                 # X frozen from 3.00 s: dead at 3.21 s
-        ctl.on_frame(_tpdo1(0x0237, 3950))
+        ctl.on_frame(_tpdo1(0x0237, 3800))
         ctl.on_frame(CODEC.encode(InclinometerFrame(x_mv=3700, y_mv=2500)))
         ctl.on_frame(SYNC)
     assert ctl.frozen() and ctl.holding
-    mean = ctl.hold.mean_mm
-    assert mean is not None and 40.0 < mean < before    # 0.2 s of trust moved it a little
-    assert ctl.speed_mm_s == pytest.approx(5.0 * (mean - 39.5)) and ctl.speed_mm_s > 0.0
+    assert ctl.hold.mean_mm is not None and ctl.hold.mean_mm < 39.99
+    assert ctl.hold.target_mm == 40.0
+    assert ctl.speed_mm_s == 10.0                       # 5/s · (40 - 38)
 
 
 def test_gain_zero_holds_in_place_and_bad_parameters_are_named() -> None:
@@ -117,6 +121,7 @@ def test_the_hold_loop_does_not_overshoot() -> None:
     step), the loop returns from 2 mm off without overshoot, within 0.05 mm in under 1 s."""
     hold = RollerHold(RollerHoldParams())
     hold.track(41.0, 0.01)
+    hold.mark()
     x = seen = 39.0
     trace = []
     for _ in range(300):
