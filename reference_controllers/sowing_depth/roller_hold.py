@@ -18,8 +18,8 @@ the moment it was declared dead: a frozen output is recognised only ``frozen_aft
 after its last change, and the positions the loop reached meanwhile, steering on a dead
 reading, say nothing about the right one.
 
-Constants (the defaults of :class:`~reference_controllers.sowing_depth.adapter.DepthAdapterParams`,
-chosen from the rig's physics, not from seeds):
+Constants (the defaults of :class:`RollerHoldParams`, which the adapter's ``hold_*``
+parameters override; chosen from the rig's physics, not from seeds):
 
 * ``tau`` = 2 s: the regulating excursions (1-2 s period, 0.5-1 Hz) come through a first-order
   low-pass attenuated by 1/sqrt(1 + (2 pi f tau)^2) = 0.08-0.16, so a 2 mm excursion moves the
