@@ -32,6 +32,7 @@ void depth_config_defaults(depth_config_t *cfg)
      * repeats (p ~ 2e-12) only a frozen output gives; each 10 ms the frozen depth is trusted
      * moves the roller (issue #16: 0.5 s left the depth up to ~2.2 mm off) */
     cfg->frozen_after_s = 0.2;
+    rhold_defaults(&cfg->hold);
 }
 
 size_t depth_param_refs(depth_config_t *cfg, param_ref_t refs[DEPTH_PARAM_COUNT])
@@ -40,6 +41,9 @@ size_t depth_param_refs(depth_config_t *cfg, param_ref_t refs[DEPTH_PARAM_COUNT]
     refs[n++] = (param_ref_t){"min_speed_mps", &cfg->min_speed_mps};
     refs[n++] = (param_ref_t){"speed_timeout_s", &cfg->speed_timeout_s};
     refs[n++] = (param_ref_t){"frozen_after_s", &cfg->frozen_after_s};
+    refs[n++] = (param_ref_t){"hold_time_constant_s", &cfg->hold.time_constant_s};
+    refs[n++] = (param_ref_t){"hold_gain_per_s", &cfg->hold.gain_per_s};
+    refs[n++] = (param_ref_t){"hold_speed_mm_s", &cfg->hold.speed_mm_s};
     return n;
 }
 
@@ -53,6 +57,15 @@ int depth_config_check(const depth_config_t *cfg, char *err, size_t errlen)
         snprintf(err, errlen, "v_max must be > 0");
         return -1;
     }
+    const char *why = NULL;
+    if (rhold_check(&cfg->hold, &why) != 0) {
+        snprintf(err, errlen, "%s", why);
+        return -1;
+    }
+    if (!(cfg->hold.speed_mm_s <= cfg->core.v_max)) {
+        snprintf(err, errlen, "hold_speed_mm_s must be <= v_max");
+        return -1;
+    }
     return 0;
 }
 
@@ -64,6 +77,7 @@ void depth_init(depth_adapter_t *a, const depth_config_t *cfg)
     a->drive_nmt = -1;
     a->target_mm = 30.0;
     fpid_reset(&a->core);
+    rhold_reset(&a->hold);
 }
 
 static hal_can_frame_t frame_of(uint32_t id, bool extended, uint8_t len)
@@ -124,6 +138,8 @@ size_t depth_on_frame(depth_adapter_t *a, const hal_can_frame_t *f, double now_s
             if (servo_cylinder_pdo_tpdo1_unpack(&m, f->data, f->len) >= 0) {
                 a->statusword = m.statusword;
                 a->have_statusword = true;
+                a->position_mm = (double)m.position_actual_value / 100.0; /* 0.01 mm */
+                a->have_position = true;
             }
         } else if (f->id == 0x280u + a->node) {
             struct servo_cylinder_pdo_tpdo2_t m;
@@ -150,6 +166,7 @@ size_t depth_on_frame(depth_adapter_t *a, const hal_can_frame_t *f, double now_s
             a->have_x = true;
             a->last_x_mv = x_mv;
             a->x_changed_at_s = now_s;
+            rhold_mark(&a->hold); /* a sign of life: the mean so far is trusted */
         }
         double depth = -0.065 * x_mv + 270.35;
         a->depth_mm = a->have_depth ? a->depth_mm + DEPTH_FILTER * (depth - a->depth_mm)
@@ -263,6 +280,20 @@ size_t depth_step(depth_adapter_t *a, double now_s, hal_can_frame_t out[DEPTH_MA
     info->depth_mm = a->depth_mm;
     info->out = fpid_step(&a->cfg.core, &a->core, a->target_mm,
                           a->have_depth ? a->depth_mm : 0.0, info->valid, info->enabled);
+    /* where the roller is held (roller_hold.h): track the mean rod position while regulating,
+     * drive the rod back to it while the depth is invalid on a running machine, forget it when
+     * control is switched off (the core commands 0: the roller stays where it is) */
+    if (info->enabled && info->valid) {
+        if (a->have_position) {
+            rhold_track(&a->cfg.hold, &a->hold, a->position_mm, a->cfg.core.period_s);
+        }
+    } else if (!info->enabled) {
+        rhold_reset(&a->hold);
+    } else if (operation_enabled(a) && a->have_position && a->hold.has_target) {
+        info->holding = true;
+        info->out.speed_mm_s = rhold_speed(&a->cfg.hold, &a->hold, a->position_mm);
+    }
+    info->hold_target_mm = a->hold.target_mm;
     info->controlword = cw;
     /* 0.01 mm/s; round half to even as Python's round() */
     info->target_velocity = (int32_t)rint(info->out.speed_mm_s * 100.0);
@@ -280,7 +311,13 @@ size_t depth_step(depth_adapter_t *a, double now_s, hal_can_frame_t out[DEPTH_MA
         memset(&st, 0, sizeof st);
         st.dc_measured_depth = sowing_depth_depth_controller_status_dc_measured_depth_encode(
             a->have_depth ? clamp(a->depth_mm, -100.0, 200.0) : 0.0);
-        st.dc_roller_position_command = 0; /* profile velocity mode: no position command */
+        /* holding: the hold target, in whole 0.01 mm (half to even, as the Python build);
+         * regulating in profile velocity mode there is no position command: 0 */
+        st.dc_roller_position_command =
+            info->holding
+                ? sowing_depth_depth_controller_status_dc_roller_position_command_encode(
+                      rint(clamp(a->hold.target_mm, 0.0, 100.0) * 100.0) / 100.0)
+                : 0;
         if (drive_fault) {
             st.dc_state = DC_FAULT;
         } else if (a->have_setpoint && a->ds_mode == DS_MODE_MANUAL) {

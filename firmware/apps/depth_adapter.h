@@ -5,19 +5,28 @@
  *
  * Frames (plant_emulators/sowing_depth/db/sowing_depth.dbc and the drive's EDS, generated code in
  * generated/sowing_depth.[ch] and generated/servo_cylinder_pdo.[ch]):
- *   in   drive heartbeat 0x702, TPDO1 0x182 / TPDO2 0x282 (statusword), Inclinometer
+ *   in   drive heartbeat 0x702, TPDO1 0x182 (statusword, Position actual value) / TPDO2
+ *        0x282 (statusword), Inclinometer
  *        0x0CFF11A1, DepthSetpoint 0x18FF2026, GBSD 0x0CFE49F0
  *   out  NMT start [0x01, 2] on 0x000 when the drive's heartbeat is not Operational (at once),
  *        RPDO3 0x402 (Modes of operation = 3) once the drive is Operational, RPDO2 0x302
  *        (Controlword, Target velocity) every step, DepthControllerStatus 0x18FF3080 and the
  *        heartbeat 0x701 every 10th step (the first step included), boot-up 0x701 [0x00].
  * Depth: eq. 13 on the X voltage of frames with status ok, filtered d += 0.2 (depth - d) per
- * frame (the first frame sets d). The depth is invalid (the core resets and the roller holds:
- * target velocity 0; the status frame says SensorFault) while the latest frame's X status is
+ * frame (the first frame sets d). The depth is invalid (the core resets and the roller is
+ * held, see below; the status frame says SensorFault) while the latest frame's X status is
  * not ok, and while the X voltage has not changed for more than frozen_after_s (0.2 s; 0 or
  * less turns this check off): a live inclinometer never repeats one ADC count for 20 reports
  * (0.2 s), so a frozen output, or one that stopped sending, is a dead sensor,
- * not a steady depth. As in the Python build. */
+ * not a steady depth. Where the roller is held (roller_hold.h): while the depth is valid and
+ * control enabled, the adapter tracks the mean rod position (TPDO1's Position actual value,
+ * tau = 2 s), and takes it as the hold target at each new X voltage (the sensor's last sign of
+ * life); when the depth turns invalid while control stays enabled (and the drive is in
+ * Operation enabled) it drives the rod back to that target, speed = clamp(5/s (h - p),
+ * +-10 mm/s), and holds it there, the status frame carrying the target as
+ * DC_RollerPositionCommand (0 otherwise); control disabled forgets both and commands 0.
+ * Parameters hold_time_constant_s, hold_gain_per_s, hold_speed_mm_s. As in the Python
+ * build. */
 #ifndef AGRIHIL_DEPTH_ADAPTER_H
 #define AGRIHIL_DEPTH_ADAPTER_H
 
@@ -27,9 +36,10 @@
 
 #include "fuzzy_pid.h"
 #include "hal_can.h"
+#include "roller_hold.h"
 
 #define DEPTH_MAX_OUT 4
-#define DEPTH_PARAM_COUNT (FPID_PARAM_COUNT + 3)
+#define DEPTH_PARAM_COUNT (FPID_PARAM_COUNT + 6)
 #define DEPTH_DRIVE_NODE 2 /* CANopen node id of the servo cylinder drive */
 
 /* CiA 402 controlwords */
@@ -43,8 +53,9 @@ typedef struct {
     fpid_params_t core;
     double min_speed_mps;   /* control only at or above this ground speed (0.1 m/s) */
     double speed_timeout_s; /* no valid ground speed for longer than this: unknown (1 s) */
-    double frozen_after_s;  /* X voltage unchanged for longer than this: sensor dead (0.5 s;
+    double frozen_after_s;  /* X voltage unchanged for longer than this: sensor dead (0.2 s;
                                0 or less: no check) */
+    rhold_params_t hold;    /* where the roller is held while the depth is invalid */
 } depth_config_t;
 
 typedef struct {
@@ -54,6 +65,8 @@ typedef struct {
     bool frozen; /* the X voltage has not changed for more than frozen_after_s */
     bool enabled;
     bool speed_known;
+    bool holding;          /* enabled, depth invalid: the rod is driven to the hold target */
+    double hold_target_mm; /* the hold target (valid if a.hold.has_target) */
     uint16_t controlword;
     int32_t target_velocity; /* 0.01 mm/s */
     fpid_output_t out;
@@ -66,6 +79,9 @@ typedef struct {
     int drive_nmt;          /* last heartbeat state, -1 before any */
     bool have_statusword;
     uint16_t statusword;
+    bool have_position;
+    double position_mm;     /* Position actual value 0x6064 (TPDO1), 0.01 mm increments / 100 */
+    rhold_state_t hold;
     bool mode_sent;
     uint16_t last_controlword;
     /* setpoint */
@@ -93,7 +109,8 @@ typedef struct {
 void depth_config_defaults(depth_config_t *cfg);
 
 /* Named parameters, the Python build's names: the core's (see fpid_param_refs) plus
- * min_speed_mps, speed_timeout_s and frozen_after_s. */
+ * min_speed_mps, speed_timeout_s, frozen_after_s, hold_time_constant_s, hold_gain_per_s and
+ * hold_speed_mm_s. */
 size_t depth_param_refs(depth_config_t *cfg, param_ref_t refs[DEPTH_PARAM_COUNT]);
 
 /* 0, or -1 if a parameter is out of its range (message in err). */

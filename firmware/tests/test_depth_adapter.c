@@ -36,13 +36,19 @@ static hal_can_frame_t heartbeat(uint8_t state)
     return std_frame(0x702, 1, &state);
 }
 
-static hal_can_frame_t tpdo1(uint16_t statusword)
+static hal_can_frame_t tpdo1_at(uint16_t statusword, int32_t position_inc)
 {
     struct servo_cylinder_pdo_tpdo1_t m = {0};
     m.statusword = statusword;
+    m.position_actual_value = position_inc;
     hal_can_frame_t f = std_frame(0x182, 6, (const uint8_t *)"\0\0\0\0\0\0");
     servo_cylinder_pdo_tpdo1_pack(f.data, &m, sizeof f.data);
     return f;
+}
+
+static hal_can_frame_t tpdo1(uint16_t statusword)
+{
+    return tpdo1_at(statusword, 0);
 }
 
 static hal_can_frame_t inclinometer(uint16_t x_mv, uint8_t status)
@@ -419,9 +425,172 @@ static void test_config_check(void)
     CHECK(param_set(refs, n, "kp_scale", "0.4") == PARAM_OK && cfg.core.kp_scale == 0.4);
     CHECK(param_set(refs, n, "speed_timeout_s", "2") == PARAM_OK && cfg.speed_timeout_s == 2);
     CHECK(param_set(refs, n, "frozen_after_s", "0.25") == PARAM_OK && cfg.frozen_after_s == 0.25);
+    CHECK(param_set(refs, n, "hold_time_constant_s", "3") == PARAM_OK &&
+          cfg.hold.time_constant_s == 3);
+    CHECK(param_set(refs, n, "hold_gain_per_s", "4") == PARAM_OK && cfg.hold.gain_per_s == 4);
+    CHECK(param_set(refs, n, "hold_speed_mm_s", "8") == PARAM_OK && cfg.hold.speed_mm_s == 8);
     CHECK(param_set(refs, n, "kp1", "1") == PARAM_UNKNOWN);
+}
+
+/* One step at i * 10 ms with the rod at position_inc (TPDO1, 0.01 mm, statusword sw), an
+ * inclinometer frame (X = 3700 + i % 2, status x_status) and a ground speed of speed_mps;
+ * returns the RPDO2's target velocity, *command the status frame's roller position command
+ * (-1 on steps without one). */
+static long long hold_step(int i, uint16_t sw, int32_t position_inc, uint8_t x_status,
+                           double speed_mps, long long *command)
+{
+    double t = (double)i * 0.01;
+    hal_can_frame_t pos = tpdo1_at(sw, position_inc);
+    depth_on_frame(&a, &pos, t, out);
+    hal_can_frame_t inc = inclinometer((uint16_t)(3700 + i % 2), x_status);
+    depth_on_frame(&a, &inc, t, out);
+    hal_can_frame_t g = gbsd(speed_mps);
+    depth_on_frame(&a, &g, t, out);
+    size_t n = depth_step(&a, t, out);
+    struct servo_cylinder_pdo_rpdo2_t pdo;
+    const hal_can_frame_t *p = find(n, 0x302);
+    servo_cylinder_pdo_rpdo2_unpack(&pdo, p->data, p->len);
+    const hal_can_frame_t *st = find(n, SOWING_DEPTH_DEPTH_CONTROLLER_STATUS_FRAME_ID);
+    *command = -1;
+    if (st != NULL) {
+        struct sowing_depth_depth_controller_status_t m;
+        sowing_depth_depth_controller_status_unpack(&m, st->data, st->len);
+        *command = m.dc_roller_position_command;
+        CHECK_INT(m.dc_sensor_fault, x_status != 0);
+    }
+    return pdo.target_velocity;
+}
+
+static void test_hold_at_mean_position(void)
+{
+    make_ready(1.0);
+    long long cmd;
+    /* 10 s of valid control with the rod swinging 40.00 / 42.00 mm: the mean settles at 41 mm
+     * (first sample 40 mm, tau = 2 s: 1 mm * e^-5 = 0.007 mm left) and no hold acts */
+    for (int i = 0; i < 1000; i++) {
+        hold_step(i, 0x0237, i % 2 ? 4200 : 4000, 0, 1.0, &cmd);
+        CHECK(!a.last.holding);
+        if (cmd >= 0) {
+            CHECK_INT(cmd, 0); /* regulating: no position command */
+        }
+    }
+    CHECK(a.hold.has_mean && a.hold.has_target);
+    CHECK_NEAR(a.hold.mean_mm, 41.0, 0.01);
+    /* the target: the mean when the last new X voltage came (before step 999's tracking) */
+    double mean = a.hold.target_mm;
+    CHECK_NEAR(mean, 41.0, 0.01);
+    /* the sensor fails with the rod at 39.00 mm: drive back at 5/s * (h - p), ~10 mm/s */
+    double last_mean = a.hold.mean_mm;
+    long long v = hold_step(1000, 0x0237, 3900, 1, 1.0, &cmd);
+    CHECK(a.last.holding && !a.last.valid);
+    CHECK_INT(v, (long long)rint(5.0 * (mean - 39.0) * 100.0));
+    CHECK_INT(cmd, (long long)rint(mean * 100.0)); /* the status carries the hold target */
+    CHECK_NEAR(a.hold.mean_mm, last_mean, 0); /* no tracking while the depth is invalid */
+    CHECK_NEAR(a.hold.target_mm, mean, 0);
+    /* past the mean: back the other way; far off: bounded at 10 mm/s */
+    CHECK_INT(hold_step(1001, 0x0237, 4150, 1, 1.0, &cmd),
+              (long long)rint(5.0 * (mean - 41.5) * 100.0));
+    CHECK_INT(hold_step(1002, 0x0237, 2000, 1, 1.0, &cmd), 1000);
+    CHECK_INT(hold_step(1003, 0x0237, 9000, 1, 1.0, &cmd), -1000);
+    /* the drive not in Operation enabled (Switched on): nothing to drive, 0 */
+    CHECK_INT(hold_step(1004, 0x0233, 3900, 1, 1.0, &cmd), 0);
+    CHECK(!a.last.holding);
+    /* standstill (control disabled): 0 as before, and the mean is forgotten, so a machine
+     * that drives off again with the sensor still dead holds where the roller is */
+    CHECK_INT(hold_step(1005, 0x0237, 3900, 1, 0.0, &cmd), 0);
+    CHECK(!a.last.holding && !a.hold.has_mean && !a.hold.has_target);
+    CHECK_INT(hold_step(1006, 0x0237, 3900, 1, 1.0, &cmd), 0);
+    CHECK(!a.last.holding);
+    /* valid again: tracking starts afresh from the rod's position */
+    hold_step(1007, 0x0237, 4321, 0, 1.0, &cmd);
+    CHECK(a.last.valid && a.hold.has_mean);
+    CHECK_NEAR(a.hold.mean_mm, 43.21, 0);
+}
+
+/* A frozen X voltage: the loop steers on the dead reading for 0.2 s and the mean follows the
+ * rod it moves; the hold target is the mean at the last new X voltage, before any of that. */
+static void test_hold_target_at_last_sign_of_life(void)
+{
+    make_ready(1.0);
+    int fault;
+    for (int i = 0; i < 300; i++) { /* live X, the rod at 40.00 mm */
+        hal_can_frame_t pos = tpdo1_at(0x0237, 4000);
+        depth_on_frame(&a, &pos, (double)i * 0.01, out);
+        step_at(i, 3700 + i % 2, 0, &fault);
+    }
+    CHECK_NEAR(a.hold.mean_mm, 40.0, 0);
+    for (int i = 300; i < 322; i++) { /* X frozen at 3701 since 2.99 s, the rod at 38 mm */
+        hal_can_frame_t pos = tpdo1_at(0x0237, 3800);
+        depth_on_frame(&a, &pos, (double)i * 0.01, out);
+        step_at(i, 3701, 0, &fault);
+    }
+    CHECK(a.last.frozen && a.last.holding);
+    CHECK(a.hold.mean_mm < 39.99); /* the mean took 0.2 s of steering on a dead reading */
+    CHECK_NEAR(a.hold.target_mm, 40.0, 0);
+    CHECK_INT(a.last.target_velocity, 1000); /* 5/s * (40 - 38) = 10 mm/s */
+}
+
+/* The hold loop against a rod that follows its speed command with the position one step old
+ * (TPDO1 of the previous SYNC): from 2 mm off it comes back without overshoot, within 0.05 mm
+ * in under 1 s. */
+static void test_hold_loop_no_overshoot(void)
+{
+    rhold_params_t p;
+    rhold_defaults(&p);
+    rhold_state_t s;
+    rhold_reset(&s);
+    rhold_track(&p, &s, 41.0, 0.01);
+    rhold_mark(&s);
+    double x = 39.0, seen = 39.0, max_x = x;
+    int settled_at = -1;
+    for (int k = 0; k < 300; k++) {
+        double v = rhold_speed(&p, &s, seen);
+        CHECK(fabs(v) <= p.speed_mm_s);
+        seen = x; /* the next step sees this step's position */
+        x += v * 0.01;
+        max_x = fmax(max_x, x);
+        if (settled_at < 0 && fabs(x - 41.0) <= 0.05) {
+            settled_at = k;
+        }
+    }
+    CHECK(max_x <= 41.0);
+    CHECK(settled_at > 0 && settled_at < 100);
+}
+
+static void test_hold_off_and_config(void)
+{
+    depth_config_t cfg;
+    depth_config_defaults(&cfg);
+    param_ref_t refs[DEPTH_PARAM_COUNT];
+    size_t n = depth_param_refs(&cfg, refs);
+    CHECK(param_set(refs, n, "hold_gain_per_s", "0") == PARAM_OK);
+    make_ready_with(&cfg, 1.0);
+    long long cmd;
+    for (int i = 0; i < 100; i++) {
+        hold_step(i, 0x0237, 4000, 0, 1.0, &cmd);
+    }
+    /* k = 0: the roller holds where it is (the behaviour before issue #16) */
+    CHECK_INT(hold_step(100, 0x0237, 3000, 1, 1.0, &cmd), 0);
+    CHECK(a.last.holding);
+
+    char err[128];
+    depth_config_defaults(&cfg);
+    n = depth_param_refs(&cfg, refs);
+    CHECK(param_set(refs, n, "hold_time_constant_s", "0") == PARAM_OK);
+    CHECK_INT(depth_config_check(&cfg, err, sizeof err), -1);
+    CHECK(strstr(err, "hold_time_constant_s") != NULL);
+    depth_config_defaults(&cfg);
+    CHECK(param_set(refs, n, "hold_gain_per_s", "-1") == PARAM_OK);
+    CHECK_INT(depth_config_check(&cfg, err, sizeof err), -1);
+    CHECK(strstr(err, "hold_gain_per_s") != NULL);
+    depth_config_defaults(&cfg);
+    CHECK(param_set(refs, n, "hold_speed_mm_s", "60") == PARAM_OK);
+    CHECK_INT(depth_config_check(&cfg, err, sizeof err), -1);
+    CHECK(strstr(err, "hold_speed_mm_s") != NULL);
 }
 
 TEST_MAIN("depth_adapter", test_nmt_start, test_controlwords, test_depth_filter,
           test_control_step, test_enable_conditions, test_frozen_inclinometer,
-          test_frozen_check_off, test_bad_status_holds, test_config_check)
+          test_frozen_check_off, test_bad_status_holds, test_config_check,
+          test_hold_at_mean_position, test_hold_target_at_last_sign_of_life,
+          test_hold_loop_no_overshoot, test_hold_off_and_config)

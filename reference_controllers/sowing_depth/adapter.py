@@ -13,13 +13,21 @@ rig's DBC (:class:`FrameCodec`), the drive's PDOs through canopen PDO maps read 
 
 Depth: the inclinometer's X voltage with status "ok", eq. 13 ``depth = -0.065·x + 270.35``,
 filtered ``d += 0.2·(depth - d)`` per frame (the first frame sets d). The depth is invalid
-(the PID resets and the roller holds; the status frame says SensorFault) while the status is
-not "ok", and while the X voltage has not changed for more than ``frozen_after_s``: a live
-inclinometer never repeats one ADC count for 0.2 s, 20 reports (its noise alone is ~1.7 counts
-SD at standstill, 2-5 on a moving machine), so a frozen output or one that stopped sending is a
-dead sensor, not a steady depth. Enabled: the terminal
-says on + automatic and a ground speed >= ``min_speed_mps`` is known (GBSD or GNSS, see
+(the PID resets and the roller is held, see below; the status frame says SensorFault) while
+the status is not "ok", and while the X voltage has not changed for more than
+``frozen_after_s``: a live inclinometer never repeats one ADC count for 0.2 s, 20 reports (its
+noise alone is ~1.7 counts SD at standstill, 2-5 on a moving machine), so a frozen output or
+one that stopped sending is a dead sensor, not a steady depth. Enabled: the terminal says on +
+automatic and a ground speed >= ``min_speed_mps`` is known (GBSD or GNSS, see
 :mod:`.ground_speed`).
+
+Where the roller is held (:mod:`.roller_hold`): while the depth is valid and control enabled,
+the adapter tracks the mean rod position (TPDO1's Position actual value 0x6064, tau = 2 s),
+and takes it as the hold target at each new X voltage (the sensor's last sign of life); when
+the depth turns invalid while control stays enabled (and the drive is in Operation enabled)
+it drives the rod back to that target, ``speed = clamp(5/s·(h - p), ±10 mm/s)``, and holds
+it there; the status frame carries the target as RollerPositionCommand (0 otherwise).
+Control disabled forgets mean and target and commands 0 (the roller stays where it is).
 """
 
 from __future__ import annotations
@@ -44,7 +52,7 @@ from plant_emulators.sowing_depth.frames import (
     InclinometerFrame,
 )
 from plant_emulators.sowing_depth.sensors import calibration_depth_mm
-from reference_controllers.params import ParamValue, field_names, override, split
+from reference_controllers.params import ParamError, ParamValue, field_names, override, split
 from reference_controllers.sowing_depth.cia402_master import (
     MODE_PROFILE_VELOCITY,
     is_fault,
@@ -53,6 +61,7 @@ from reference_controllers.sowing_depth.cia402_master import (
 )
 from reference_controllers.sowing_depth.fuzzy_pid import FuzzyPid, FuzzyPidParams
 from reference_controllers.sowing_depth.ground_speed import NmeaPort, SpeedSources
+from reference_controllers.sowing_depth.roller_hold import RollerHold, RollerHoldParams
 
 SYNC_ID = 0x080
 NMT_OPERATIONAL = 0x05
@@ -66,8 +75,11 @@ GNSS_PORT_ENV = "AGRIHIL_GNSS_PORT"
 
 @dataclass(frozen=True)
 class DepthAdapterParams:
-    """The adapter's own parameters: when a ground speed counts as known, and when an
-    unchanging inclinometer counts as dead (``frozen_after_s``; 0 turns the check off)."""
+    """The adapter's own parameters: when a ground speed counts as known, when an
+    unchanging inclinometer counts as dead (``frozen_after_s``; 0 turns the check off), and
+    where the roller is held while the depth is invalid (``hold_*``: the fields of
+    :class:`~reference_controllers.sowing_depth.roller_hold.RollerHoldParams`, whose
+    docstring says why these values)."""
 
     min_speed_mps: float = 0.1
     speed_timeout_s: float = 1.0
@@ -77,6 +89,17 @@ class DepthAdapterParams:
     #: 10 ms the frozen depth is trusted moves the roller (up to 50 mm/s): 0.5 s left the
     #: depth up to ~2.2 mm off for the rest of a stuck fault (issue #16)
     frozen_after_s: float = 0.2
+    hold_time_constant_s: float = RollerHoldParams.time_constant_s
+    hold_gain_per_s: float = RollerHoldParams.gain_per_s
+    hold_speed_mm_s: float = RollerHoldParams.speed_mm_s
+
+    def __post_init__(self) -> None:
+        self.hold()
+
+    def hold(self) -> RollerHoldParams:
+        """The hold's parameters (raises ``ValueError`` naming one out of range)."""
+        return RollerHoldParams(self.hold_time_constant_s, self.hold_gain_per_s,
+                                self.hold_speed_mm_s)
 
 
 def resolve_params(params: Mapping[str, ParamValue] | None) -> tuple[FuzzyPidParams,
@@ -84,8 +107,12 @@ def resolve_params(params: Mapping[str, ParamValue] | None) -> tuple[FuzzyPidPar
     """(core parameters, adapter parameters) from ``key=value`` pairs; unknown keys raise
     :class:`~reference_controllers.params.ParamError` naming the key."""
     adapter_values, core_values = split(dict(params or {}), field_names(DepthAdapterParams))
-    return override(FuzzyPidParams(), core_values), override(DepthAdapterParams(),
-                                                             adapter_values)
+    core = override(FuzzyPidParams(), core_values)
+    adapter = override(DepthAdapterParams(), adapter_values)
+    if not adapter.hold_speed_mm_s <= core.v_max:
+        raise ParamError("hold_speed_mm_s must be <= v_max, got "
+                         f"{adapter.hold_speed_mm_s} > {core.v_max}")
+    return core, adapter
 
 
 class DepthController(Controller):
@@ -112,6 +139,7 @@ class DepthController(Controller):
         self.core_params, self.adapter_params = resolve_params({**(params or {}),
                                                                 **more_params})
         self.core = FuzzyPid(self.core_params)
+        self.hold = RollerHold(self.adapter_params.hold())
         self.step_on_sync = step_on_sync
         wiring = (rig_config or load_rig_config()).wiring
         self.node_id = wiring.drive_node_id
@@ -128,6 +156,9 @@ class DepthController(Controller):
         self.gnss: NmeaPort | None = None
         self.drive_nmt: int | None = None
         self.statusword = 0
+        #: Position actual value 0x6064 from TPDO1 (0.01 mm increments / 100), None before any
+        self.position_mm: float | None = None
+        self.holding = False
         self.last_controlword = 0
         self.mode_sent = False
         self.target_mm = 30.0
@@ -182,6 +213,8 @@ class DepthController(Controller):
             self.network.notify(can_id, bytes(msg.data), msg.timestamp)
             pdo = 1 if can_id == 0x180 + self.node_id else 2
             self.statusword = int(self.drive.tpdo[pdo]["Statusword"].raw)
+            if pdo == 1:
+                self.position_mm = int(self.drive.tpdo[1]["Position actual value"].raw) / 100.0
         return []
 
     def _take_plain(self, msg: can.Message) -> None:
@@ -193,6 +226,7 @@ class DepthController(Controller):
             if self.depth_ok:
                 if frame.x_mv != self.last_x_mv:
                     self.last_x_mv, self.x_changed_at_s = frame.x_mv, self.now_s
+                    self.hold.mark()         # a sign of life: the mean so far is trusted
                 depth = calibration_depth_mm(frame.x_mv)
                 self.depth_mm = depth if self.depth_mm is None else (
                     self.depth_mm + DEPTH_FILTER * (depth - self.depth_mm))
@@ -243,6 +277,19 @@ class DepthController(Controller):
         enabled = self.enabled()
         speed, kp, ki, kd = self.core.step(self.target_mm, self.depth_mm or 0.0, valid,
                                            enabled)
+        # where the roller is held (.roller_hold): track the mean rod position while
+        # regulating, drive the rod back to it while the depth is invalid on a running
+        # machine, forget it when control is switched off (the core commands 0: it stays)
+        self.holding = False
+        if enabled and valid:
+            if self.position_mm is not None:
+                self.hold.track(self.position_mm, self.core_params.period_s)
+        elif not enabled:
+            self.hold.reset()
+        elif (is_operation_enabled(self.statusword) and self.position_mm is not None
+              and self.hold.target_mm is not None):
+            self.holding = True
+            speed = self.hold.speed(self.position_mm)
         self.speed_mm_s, self.gains = speed, (kp, ki, kd)
         self.drive.rpdo[2]["Controlword"].raw = controlword
         self.drive.rpdo[2]["Target velocity"].raw = round(speed * 100.0)
@@ -271,8 +318,13 @@ class DepthController(Controller):
         else:
             state = "initialising"
         depth = 0.0 if self.depth_mm is None else min(max(self.depth_mm, -100.0), 200.0)
+        # holding: the hold target in whole 0.01 mm (half to even, as the C build); regulating
+        # in profile velocity mode there is no position command: 0
+        command = 0.0
+        if self.holding and self.hold.target_mm is not None:
+            command = round(min(max(self.hold.target_mm, 0.0), 100.0) * 100.0) / 100.0
         return self.codec.encode(ControllerStatus(
-            measured_depth_mm=round(depth, 1), roller_position_command_mm=0.0, state=state,
+            measured_depth_mm=round(depth, 1), roller_position_command_mm=command, state=state,
             sensor_fault=int(self.depth_mm is None or not self.depth_ok or frozen),
             drive_fault=int(is_fault(self.statusword)),
             speed_lost=int(self.speeds.speed(self.now_s) is None),

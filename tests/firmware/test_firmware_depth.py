@@ -17,12 +17,15 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import cantools
+import numpy as np
 import pytest
 
+from hil.dut import InProcessDut
 from hil.record.traces import load_traces
 from hil.rig import Event, RunOptions, Scenario, run_scenario
 from hil.softbus import SoftwareBus
 from plant_emulators.sowing_depth.rig import SowingDepthRig
+from reference_controllers.sowing_depth.adapter import DepthController
 
 ROOT = Path(__file__).resolve().parents[2]
 DB = cantools.database.load_file(ROOT / "plant_emulators/sowing_depth/db/sowing_depth.dbc")
@@ -195,3 +198,61 @@ def test_short_lockstep_run_of_the_depth_rig(firmware_bin: Path, firmware_dut,
     print(f"depth {before:.2f} mm before, {after:.2f} mm after the step to 38 mm")
     assert before == pytest.approx(30.0, abs=2.5)
     assert after == pytest.approx(38.0, abs=2.5)
+
+
+def _hold_commands(bus_log: Path) -> list[tuple[float, float]]:
+    """(time, DC_RollerPositionCommand) of the status frames that said SensorFault."""
+    message = DB.get_message_by_frame_id(STATUS)
+    out = []
+    for line in bus_log.read_text().splitlines():
+        stamp, _, frame = line.split()[:3]
+        can_id, _, data = frame.partition("#")
+        if int(can_id, 16) == STATUS:
+            sig = message.decode(bytes.fromhex(data), decode_choices=False)
+            if sig["DC_SensorFault"]:
+                out.append((float(stamp.strip("()")), float(sig["DC_RollerPositionCommand"])))
+    return out
+
+
+def test_both_builds_hold_the_roller_at_the_same_mean_position(firmware_bin: Path,
+                                                               firmware_dut,
+                                                               tmp_path: Path) -> None:
+    """The inclinometer dies (open circuit) at 6 s: the firmware and the Python build drive
+    the rod to the same hold target (the mean rod position of valid control), bit for bit,
+    and the status frame carries that target (issue #16)."""
+    scenario = Scenario(name="fw-depth-hold", description="", rig="sowing_depth",
+                        duration_s=8.0,
+                        initial={"target_depth_mm": 30.0, "ground_speed_mps": 1.1111},
+                        events=(Event(at_s=6.0, fault="inclinometer_open_circuit"),))
+    fw = run_scenario(SowingDepthRig, scenario,
+                      firmware_dut([str(firmware_bin / APP), "--sync"], bootup_id=HEARTBEAT),
+                      RunOptions(out_dir=tmp_path / "fw", bus="softbus", clock="lockstep",
+                                 seed=8))
+    ctl = DepthController()
+    try:
+        py = run_scenario(SowingDepthRig, scenario, InProcessDut(ctl),
+                          RunOptions(out_dir=tmp_path / "py", bus="inline", clock="lockstep",
+                                     seed=8))
+    finally:
+        ctl.close()
+    assert fw.record["error"] is None and py.record["error"] is None
+    tr_fw = load_traces(tmp_path / "fw" / "traces.npz")[0]
+    tr_py = load_traces(tmp_path / "py" / "traces.npz")[0]
+    assert (tr_fw["rod_position_mm"] == tr_py["rod_position_mm"]).all()
+    holds_fw = _hold_commands(tmp_path / "fw" / "bus.log")
+    assert holds_fw == _hold_commands(tmp_path / "py" / "bus.log")
+    assert len(holds_fw) >= 15                      # 6.1 ... 7.9 s (at least)
+    target = holds_fw[-1][1]
+    assert {value for _, value in holds_fw} == {target}     # the mean is frozen while holding
+    # the target is the rod's 2 s low-pass mean up to the fault (recomputed here from the
+    # rig's rod trace, which the controller sees one SYNC late through TPDO1)
+    t, rod = tr_fw["time_s"], tr_fw["rod_position_mm"]
+    valid = np.flatnonzero((t > 0.1) & (t < 6.0))
+    mean = float(rod[valid[0]])
+    for k in valid[1:]:
+        mean += 0.01 / 2.0 * (float(rod[k]) - mean)
+    print(f"hold target {target:.2f} mm, 2 s mean {mean:.3f} mm, rod {rod[t < 6.0][-1]:.2f} mm "
+          f"at the fault, {rod[-1]:.2f} mm at the end")
+    assert target == pytest.approx(mean, abs=0.05)
+    assert abs(target - rod[t < 6.0][-1]) > 0.1     # not where the fault left the rod ...
+    assert rod[-1] == pytest.approx(target, abs=0.05)     # ... but back at the mean
