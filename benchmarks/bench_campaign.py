@@ -24,11 +24,12 @@ FIRMWARE = ROOT / "dut_profiles/fertilizer-piecewise-pid-firmware.toml"
 DAEMON = ROOT / "dut_profiles/fertilizer-piecewise-pid-daemon.toml"
 
 
-def campaign(profile: Path, samples: int, workers: int, bus: str, out: Path) -> dict:
+def campaign(profile: Path, samples: int, workers: int, bus: str, out: Path,
+             *extra: str) -> dict:
     t0 = time.perf_counter()
     subprocess.run([sys.executable, "-m", "hil", "campaign", str(profile), "--samples",
                     str(samples), "--workers", str(workers), "--bus", bus, "--out", str(out),
-                    "--max-reruns", "0", "--no-progress"], check=False,
+                    "--max-reruns", "0", "--no-progress", *extra], check=False,
                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     doc = json.loads((out / "campaign.json").read_text())
     doc["_wall"] = time.perf_counter() - t0
@@ -78,6 +79,11 @@ def main() -> None:
         per_in = sorted(s["wall_s"] for s in ins["samples"])
         print(f"inline per-sample wall median {per_in[len(per_in) // 2]:.2f} s vs one full "
               f"qualification {single['inline']:.2f} s")
+        inp = campaign(DAEMON, 6, 1, "inline", base / "in-cost-inprocess",
+                       "--isolation", "inprocess")
+        per_inp = sorted(s["wall_s"] for s in inp["samples"])
+        print(f"inline per-sample wall median with --isolation inprocess "
+              f"{per_inp[len(per_inp) // 2]:.2f} s (no interpreter start per sample)")
     print(f"load average at end: {os.getloadavg()}")
 
 
