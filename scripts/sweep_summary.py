@@ -81,7 +81,8 @@ def main(argv: list[str] | None = None) -> int:
         for m in r["measurements"]:
             key = _key(m)
             if m["outcome"] not in ("pass", "info", "marginal"):
-                print(f"  seed {r['seed']}: {key} = {m['value']} {m['outcome']} {m.get('note') or ''}")
+                note = m.get("note") or ""
+                print(f"  seed {r['seed']}: {key} = {m['value']} {m['outcome']} {note}")
             v = m["value"]
             if v is None:
                 continue

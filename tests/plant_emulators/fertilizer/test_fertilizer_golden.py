@@ -10,6 +10,8 @@ deliberate change of the physics, and say so in the commit.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -53,7 +55,13 @@ HALL_WHEEL_SPEED_MPS = 1.5718230783506406
 
 
 def test_plant_golden_values(rig_config):
-    plant = FertilizerPlant(rig_config, np.random.default_rng(42))
+    # the golden values were recorded with the flute pulsation estimate of the time (30 % and
+    # 10 %; issue #16 bounded it by [F]'s data to 15 % and 5 %): they check the implementation,
+    # so they keep the parameters they were recorded with
+    meter = dataclasses.replace(rig_config.meter, pulsation_first_harmonic_frac=0.30,
+                                pulsation_second_harmonic_frac=0.10)
+    plant = FertilizerPlant(dataclasses.replace(rig_config, meter=meter),
+                            np.random.default_rng(42))
     for steps, command, stalled in PLANT_SCRIPT:
         plant.command_v, plant.stalled = command, stalled
         for _ in range(steps // 10):
