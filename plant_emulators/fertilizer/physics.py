@@ -228,10 +228,16 @@ class FertilizerPlant:
         own = spawn(rng)
         z_rng = spawn(own)
         # Per-run draws, in a fixed order.
+        # The rollers differ from each other, not from the meter's calibration: the operator's
+        # rotation test (scripts/calibrate_meter.py) weighs all rows of *this* meter together,
+        # so their mean is what the calibration absorbs. A draw with its own mean would be a
+        # new, uncalibrated meter on every run (issue #16): the spread is drawn about its mean.
+        spread = own.standard_normal(rows)
+        if rows > 1:
+            spread = (spread - spread.mean()) * math.sqrt(rows / (rows - 1))
         self.row_gain: tuple[float, ...] = tuple(
-            max(0.5, 1.0 + meter.row_spread_sd_frac * float(v))
-            for v in own.standard_normal(rows))
-        """Per-row delivery factor of each roller relative to the nominal map."""
+            max(0.5, 1.0 + meter.row_spread_sd_frac * float(v)) for v in spread)
+        """Per-row delivery factor of each roller relative to the calibrated meter (mean 1)."""
         flute_offsets = own.uniform(0.0, 1.0, rows).tolist()
         self.density_offset_frac: float = (fert.density_offset_mean_frac
                                            + fert.density_offset_sd_frac
