@@ -60,7 +60,8 @@ def main() -> None:
         rate = len(fw["samples"]) / fw["_wall"] * 60
         per = [s["wall_s"] for s in fw["samples"] if s.get("wall_s")]
         rss = {s["index"]: s.get("rss_mb") for s in fw["samples"]}
-        print(f"firmware fast suite, {n} samples on 2 workers: {fw['_wall']:.0f} s "
+        print(f"firmware fast suite, {n} samples on 2 workers (--isolation fork, the "
+              f"default): {fw['_wall']:.0f} s "
               f"({rate:.1f} samples/min; 300 samples extrapolated: {300 / rate:.1f} min); "
               f"verdict {fw['summary']['verdict']} ({fw['summary']['passed']}/"
               f"{fw['summary']['judged']} passed)")
@@ -75,15 +76,18 @@ def main() -> None:
             r1, r2 = m / one["_wall"] * 60, m / two["_wall"] * 60
             print(f"{bus}: {m} samples, 1 worker {r1:.1f}/min, 2 workers {r2:.1f}/min: "
                   f"x{r2 / r1:.2f}")
-        ins = campaign(DAEMON, 6, 1, "inline", base / "in-cost")
-        per_in = sorted(s["wall_s"] for s in ins["samples"])
-        print(f"inline per-sample wall median {per_in[len(per_in) // 2]:.2f} s vs one full "
-              f"qualification {single['inline']:.2f} s")
-        inp = campaign(DAEMON, 6, 1, "inline", base / "in-cost-inprocess",
-                       "--isolation", "inprocess")
-        per_inp = sorted(s["wall_s"] for s in inp["samples"])
-        print(f"inline per-sample wall median with --isolation inprocess "
-              f"{per_inp[len(per_inp) // 2]:.2f} s (no interpreter start per sample)")
+        fresh = campaign(FIRMWARE, 6, 1, "softbus", base / "fw-process",
+                         "--isolation", "process")
+        per_fresh = sorted(s["wall_s"] for s in fresh["samples"])
+        print(f"firmware per-sample wall median with --isolation process (a new interpreter "
+              f"per sample) {per_fresh[len(per_fresh) // 2]:.2f} s")
+        for isolation in ("fork", "process", "inprocess"):
+            ins = campaign(DAEMON, 6, 1, "inline", base / f"in-cost-{isolation}",
+                           "--isolation", isolation)
+            per_in = sorted(s["wall_s"] for s in ins["samples"])
+            print(f"inline per-sample wall median, --isolation {isolation}: "
+                  f"{per_in[len(per_in) // 2]:.2f} s vs one full qualification "
+                  f"{single['inline']:.2f} s")
     print(f"load average at end: {os.getloadavg()}")
 
 

@@ -211,9 +211,8 @@ def test_reference_daemon_passes_the_depth_steps(tmp_path: Path) -> None:
 #: sensor trust, standstill, a dying DUT, ...); the others run with ``-m slow`` (each
 #: qualification takes 12-22 s, and the default run must stay well under 10 minutes)
 FAST_SUBSET = {
-    "sowing-depth-ignores-sensor-flags-daemon",
-    "sowing-depth-inverted-polarity-daemon",
-    "sowing-depth-trusts-frozen-sensor-daemon",
+    "sowing-depth-inverted-polarity-daemon",     # control law
+    "sowing-depth-trusts-frozen-sensor-daemon",  # sensor trust
 }
 
 

@@ -7,7 +7,9 @@ starts one per run) and its own DUT processes, in a process group of its own: a 
 hangs past its timeout is killed with everything it started, and is returned as an error
 sample with that reason. A fresh process per sample is the isolation: pytest's plugin and
 module state never carries from one sample to the next (its cost is measured in
-``benchmarks/bench_campaign.py``).
+``benchmarks/bench_campaign.py``). The process is either a new interpreter (isolation
+``process``) or forked from a server that imported the suites' dependencies once (``fork``,
+:mod:`hil.campaign.forked`); ``inprocess`` runs pytest in the worker itself.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from hil.campaign.forked import ForkRefused, run_forked
 from hil.campaign.overrides import format_override
 
 #: what a sample keeps of each measurement
@@ -85,7 +88,9 @@ def pytest_argv(task: SampleTask, out: Path) -> list[str]:
             "--rootdir", str(root), "-p", "no:cacheprovider", "-q", "--no-header",
             "--hil-dut", task.profile, "--hil-bus", task.bus, "--hil-clock", task.clock,
             "--hil-report", str(out), "--hil-suite", task.suites,
-            "--hil-seed", str(task.seed), "--hil-record", task.record]
+            "--hil-seed", str(task.seed), "--hil-record", task.record,
+            # the suites use neither; Hypothesis' plugin alone takes ~0.6 s of CPU to import
+            "-p", "no:hypothesispytest", "-p", "no:benchmark"]
     for item in task.override_args():
         argv += ["--hil-rig-override", item]
     if task.record == "full":
@@ -117,6 +122,18 @@ def run_sample(task: SampleTask) -> dict[str, Any]:
         if task.isolation == "inprocess":
             code = _run_inprocess(task, out, log)
             _read_record(sample, out / "record.json", code, log)
+            return sample
+        if task.isolation == "fork":
+            try:
+                forked = run_forked(_fork_argv(task, out), log, task.timeout_s)
+            except ForkRefused as exc:
+                sample["error"] = str(exc)
+                return sample
+            if forked is None:
+                sample["error"] = (f"timeout: the sample ran longer than {task.timeout_s:g} s "
+                                   f"and was killed")
+                return sample
+            _read_record(sample, out / "record.json", forked, log)
             return sample
         with log.open("wb") as fh:
             proc = subprocess.Popen(pytest_argv(task, out), stdout=fh, stderr=subprocess.STDOUT,
@@ -160,6 +177,12 @@ def _read_record(sample: dict[str, Any], path: Path, code: int, log: Path) -> No
         errors = [r.get("error") for r in record.get("runs", []) if r.get("error")]
         sample["error"] = (f"qualification verdict {sample['verdict']}"
                            + (f": {errors[0]}" if errors else f" (pytest exit {code})"))
+
+
+def _fork_argv(task: SampleTask, out: Path) -> list[str]:
+    # the fork server imported the framework before pytest could rewrite its asserts (the
+    # suites' own modules are still rewritten): say nothing about that in every sample's log
+    return [*pytest_argv(task, out)[3:], "-W", "ignore::pytest.PytestAssertRewriteWarning"]
 
 
 def _run_inprocess(task: SampleTask, out: Path, log: Path) -> int:

@@ -58,10 +58,14 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
     p.add_argument("--max-reruns", type=int, default=10,
                    help="most samples rerun with full recording, failing ones first "
                         "(default: 10; 0: none)")
-    p.add_argument("--isolation", choices=["process", "inprocess"], default="process",
-                   help="process (default): a fresh pytest process per sample, killed at "
-                        "--timeout-s; inprocess: pytest in the worker itself, faster, but a "
-                        "hung sample cannot be killed (reruns always use a process)")
+    p.add_argument("--isolation", choices=["fork", "process", "inprocess"], default=None,
+                   help="fork (default on local workers): a fresh process per sample, "
+                        "forked from one that imported the suites' dependencies once, "
+                        "killed at --timeout-s; process (default with --scheduler): a new "
+                        "interpreter per sample, the same isolation without the fork "
+                        "server (which daemonic Dask workers may not start); inprocess: "
+                        "pytest in the worker itself, but a hung sample cannot be killed "
+                        "(reruns always use a new interpreter)")
     p.add_argument("--no-progress", action="store_true", help="no progress display")
     p.set_defaults(func=_campaign)
 
@@ -74,6 +78,8 @@ def _campaign(args: argparse.Namespace) -> int:
     from hil.dut.profile import load_profile
 
     profile = load_profile(args.profile)
+    if args.isolation is None:
+        args.isolation = "process" if args.scheduler else "fork"
     if args.samples < 1:
         raise ConfigError(f"--samples must be >= 1, got {args.samples}", key="--samples")
     if args.workers is not None and args.workers < 1:

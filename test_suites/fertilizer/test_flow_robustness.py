@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hil.metrics import accuracy_theta, judged_recovery, recovery_time, step_response
+from hil.metrics import accuracy_theta, judged_recovery, recovery_time
 from test_suites.fertilizer.traces import (
     delivered_and_target_g,
     flow_filter,
@@ -75,12 +75,20 @@ def test_speed_loss(hil_run, hil_measure) -> None:
 def test_saturation_recovery(hil_run, hil_measure) -> None:
     result = hil_run("fault-saturation-recovery")
     t, flow = row_mean(result, "flow_at_meter")
-    # the true flow as the step tests judge it (mass per whole flute periods, ~1 s)
-    m = step_response(t, flow, t0=RETURN_S, target=RETURN_TARGET_GPS,
-                      **flow_filter(result, RETURN_S))
-    value, never = judged_recovery(m.response_time_s, t, t0=RETURN_S)
+    # the true flow as the step tests judge it (mass per whole flute periods, ~1 s), back
+    # within +/-5 % of the target, as after a restart or a cut wire. Not 5 % of the step down
+    # from saturation (issue #16): that band is 5 % of the meter's capacity of the day minus
+    # the target (~29 g/s, a +/-4.3 % band at 34 g/s, narrower on a denser lot), and it
+    # failed flows that stayed within +/-4.3 % from 0.5 s after the return (seed 8300052)
+    recovery = recovery_time(t, flow, t0=RETURN_S, target=RETURN_TARGET_GPS,
+                             **flow_filter(result, RETURN_S))
+    value, never = judged_recovery(recovery, t, t0=RETURN_S)
+    before = (t >= RETURN_S - 2.0) & (t < RETURN_S)
+    saturated = float(np.mean(flow[before])) if before.any() else float("nan")
     hil_measure("flow.fault.saturation.recovery_time", value, run=result,
-                note="; ".join([never, *m.notes] if never else m.notes))
+                note=never or f"{saturated:.1f} g/s per row (mean of the last 2 s) at full "
+                              f"command before the target returned to "
+                              f"{RETURN_TARGET_GPS:g} g/s")
 
 
 RESTART_S = 13.0           # fault-dut-restart: the controller is power-cycled here

@@ -75,15 +75,6 @@ def test_must_fail_fails_a_campaign(tmp_path: Path) -> None:
     assert doc["summary"]["verdict"] == "fail" and doc["summary"]["failed"] == 2
 
 
-def test_a_hung_sample_is_an_error_sample(tmp_path: Path) -> None:
-    code, doc = _campaign(tmp_path / "t", "--samples", "1", "--timeout-s", "0.5",
-                          "--max-reruns", "0", "--dispersion", "none")
-    assert code == 2
-    [sample] = doc["samples"]
-    assert sample["verdict"] == "error" and sample["error"].startswith("timeout")
-    assert doc["summary"]["verdict"] == "error"
-
-
 def test_bad_dispersion_is_a_one_line_error(tmp_path: Path,
                                             capsys: pytest.CaptureFixture[str]) -> None:
     bad = tmp_path / "d.toml"

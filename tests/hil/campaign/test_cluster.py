@@ -84,3 +84,10 @@ def test_cluster_campaign_equals_the_local_one(tmp_path: Path, cluster: str) -> 
         assert r["error"] is None
     assert remote["summary"]["verdict"] == local["summary"]["verdict"]
     assert remote["measurements"] == local["measurements"]
+    # the fork server needs workers that may start processes; `dask worker` starts daemonic
+    # ones, so --isolation fork there is an error sample that says what to do
+    code = main(["campaign", str(REFERENCE), "--samples", "1", "--bus", "inline",
+                 "-k", "test_flow_step and 23", "--max-reruns", "0", "--no-progress",
+                 "--isolation", "fork", "--scheduler", cluster, "--out", str(tmp_path / "f")])
+    forked = json.loads((tmp_path / "f" / "campaign.json").read_text())
+    assert code == 2 and "DASK_DISTRIBUTED__WORKER__DAEMON=False" in forked["samples"][0]["error"]

@@ -2,11 +2,12 @@
 
 The hot loops are tuned for speed (hoisted constants, scheduled events, rows processed in
 bulk); none of that may change a result. These values were produced by the straightforward
-per-step implementation (commit ffad60c) in the rig's call pattern (``advance(10)`` per
-10 ms); the plant's were updated once for a deliberate change of the physics (issue #16: the
-rollers' per-run spread is drawn about its mean, which the meter's calibration absorbs). The tolerance (1e-12 relative) only absorbs last-bit differences of ``cos``/``pow``
-between C libraries; on the development VM the values match exactly. Update them only for a
-deliberate change of the physics, and say so in the commit.
+per-step implementation (commit ffad60c) in the rig's call pattern (``advance(10)`` per 10 ms);
+the plant's were updated once for a deliberate change of the physics (issue #16: the rollers'
+per-run spread is drawn about its mean, which the meter's calibration absorbs). The tolerance
+(1e-12 relative) only absorbs last-bit differences of ``cos``/``pow`` between C libraries; on
+the development VM the values match exactly. Update them only for a deliberate change of the
+physics, and say so in the commit.
 """
 
 from __future__ import annotations
