@@ -314,6 +314,7 @@ class QualificationSession:
             result = run_scenario(rig_cls, scenario, dut, RunOptions(
                 out_dir=out_dir, clock=clock, bus=bus, seed=seed_used,
                 step_timeout_s=step_timeout_s, record_bus=self.record_mode == "full",
+                save_traces=self.record_mode == "full",
                 **wiring,
                 extra_meta={"dut_identity": profile.identity(), "dut_build": build,
                             "test": nodeid}))

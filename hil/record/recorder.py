@@ -98,10 +98,13 @@ class Recorder:
         The bus log files to write (see :class:`~hil.record.buslog.BusLog`).
     csv : bool, optional
         Also write ``traces.csv``.
+    save_traces : bool, optional
+        Write ``traces.npz`` (and ``traces.csv``); False keeps them in :attr:`traces` only.
     """
 
     def __init__(self, out_dir: str | Path, *, run_id: str | None = None,
-                 bus_log_formats: tuple[str, ...] = DEFAULT_FORMATS, csv: bool = False) -> None:
+                 bus_log_formats: tuple[str, ...] = DEFAULT_FORMATS, csv: bool = False,
+                 save_traces: bool = True) -> None:
         self.out_dir = Path(out_dir)
         self.out_dir.mkdir(parents=True, exist_ok=True)
         self.run_id = run_id or uuid.uuid4().hex[:12]
@@ -111,6 +114,7 @@ class Recorder:
         self.meta: dict[str, Any] = {}
         self.seeds: dict[str, int] = {}
         self.csv = csv
+        self.save_traces = save_traces
         self.verdict: Verdict | None = None
         self.error: str | None = None
         self.started_at = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
@@ -167,9 +171,10 @@ class Recorder:
         names = ["record.json"]
         if self.bus_log is not None:
             names += [p.name for p in self.bus_log.paths]
-        names.append("traces.npz")
-        if self.csv:
-            names.append("traces.csv")
+        if self.save_traces:
+            names.append("traces.npz")
+            if self.csv:
+                names.append("traces.csv")
         return names
 
     def close(self) -> dict[str, Any]:
@@ -184,9 +189,10 @@ class Recorder:
             except Exception as exc:
                 problems.append(f"bus log: {exc}")
         try:
-            self.traces.save_npz(self.out_dir / "traces.npz")
-            if self.csv:
-                self.traces.save_csv(self.out_dir / "traces.csv")
+            if self.save_traces:
+                self.traces.save_npz(self.out_dir / "traces.npz")
+                if self.csv:
+                    self.traces.save_csv(self.out_dir / "traces.csv")
         except Exception as exc:
             problems.append(f"traces: {exc}")
         record = self.record()

@@ -7,7 +7,6 @@ from typing import Any
 
 import numpy as np
 
-from hil.record import load_traces
 from hil.rig import RunResult
 from plant_emulators.fertilizer.config import load_rig_config
 
@@ -25,7 +24,7 @@ STEADY_WINDOW_S = 10.0
 
 def row_mean(result: RunResult, prefix: str) -> tuple[np.ndarray, np.ndarray]:
     """Time and the mean over rows of the traces ``<prefix>_<row>_gps``."""
-    arrays, _ = load_traces(result.out_dir / "traces.npz")
+    arrays, _ = result.traces()
     rows = sorted(k for k in arrays if k.startswith(prefix + "_") and k.endswith("_gps"))
     if not rows:
         raise KeyError(f"{result.out_dir}/traces.npz has no {prefix}_<row>_gps traces")
@@ -33,7 +32,7 @@ def row_mean(result: RunResult, prefix: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 def trace(result: RunResult, name: str) -> tuple[np.ndarray, np.ndarray]:
-    arrays, _ = load_traces(result.out_dir / "traces.npz")
+    arrays, _ = result.traces()
     return arrays["time_s"], arrays[name]
 
 

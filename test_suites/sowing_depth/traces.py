@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from hil.record import load_traces
 from hil.rig import RunResult
 
 #: [D] excludes 10 m headlands at each end of the 180 m plot
@@ -13,14 +12,14 @@ PLOT_M = 180.0
 
 
 def trace(result: RunResult, name: str) -> tuple[np.ndarray, np.ndarray]:
-    arrays, _ = load_traces(result.out_dir / "traces.npz")
+    arrays, _ = result.traces()
     return arrays["time_s"], arrays[name]
 
 
 def plot_truth(result: RunResult) -> tuple[np.ndarray, np.ndarray]:
     """Positions (m) and true seed depths (cells x rows) inside the plot, headlands excluded."""
-    with np.load(result.out_dir / "truth.npz") as truth:
-        x = truth["distance_m"]
-        depth = truth["depth_mm"]
+    truth = result.truth_arrays()
+    x = truth["distance_m"]
+    depth = truth["depth_mm"]
     inside = (x >= HEADLAND_M) & (x <= PLOT_M - HEADLAND_M)
     return x[inside], depth[inside]
