@@ -3,6 +3,7 @@ against one full qualification, worker RSS over the campaign.
 
     python benchmarks/bench_campaign.py --samples 300            # the target run
     python benchmarks/bench_campaign.py --samples 40 --quick     # smaller N, extrapolated
+    python benchmarks/bench_campaign.py --samples 300 --pair-samples 40   # the target, measured
 
 Prints the figures; asserts nothing about time (figures, not tests). The machine's load average
 is printed with them: on a shared machine the figures are only as good as that.
@@ -47,6 +48,9 @@ def qualify_s(profile: Path, bus: str, out: Path) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--samples", type=int, default=300)
+    parser.add_argument("--pair-samples", type=int, default=None,
+                        help="samples of each 1-worker and 2-worker throughput run (default: "
+                             "N, or N/2 with --quick)")
     parser.add_argument("--quick", action="store_true",
                         help="smaller throughput runs (N/2 samples) for the 1-vs-2 figure")
     args = parser.parse_args()
@@ -69,7 +73,7 @@ def main() -> None:
               f"one full qualification {single['softbus']:.2f} s (firmware, softbus)")
         print(f"worker RSS: sample 10: {rss.get(10)} MB, last sample {n - 1}: "
               f"{rss.get(n - 1)} MB")
-        m = max(4, n // 2) if args.quick else n
+        m = args.pair_samples or (max(4, n // 2) if args.quick else n)
         for bus, profile in (("inline", DAEMON), ("softbus", FIRMWARE)):
             one = campaign(profile, m, 1, bus, base / f"{bus}1")
             two = campaign(profile, m, 2, bus, base / f"{bus}2")

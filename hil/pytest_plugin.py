@@ -9,7 +9,7 @@ Registered through the ``pytest11`` entry point, so any ``pytest`` run has the o
     --hil-seed N           base seed of every scenario run (default: each scenario's own)
     --hil-rig-override K=V rig config override (dotted key, TOML value), on top of the
                            profile's [rig]; repeatable (a campaign sample's dispersed rig)
-    --hil-record MODE      full (default) or measurements: no bus logs and no report.html
+    --hil-record MODE      full (default) or measurements: no bus logs, traces files or report.html
                            (a campaign's passing samples keep their measurements only)
 
 Fixtures (scopes in brackets): ``hil_profile`` [session] the validated profile;
@@ -90,7 +90,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                          "run, on top of the profile's [rig]; repeatable")
     group.addoption("--hil-record", choices=["full", "measurements"], default="full",
                     help="full (default): bus logs, traces and report.html; measurements: "
-                         "no bus logs, no report.html (campaign samples)")
+                         "no bus logs, no traces files, no report.html (campaign samples)")
 
 
 def pytest_configure(config: pytest.Config) -> None:

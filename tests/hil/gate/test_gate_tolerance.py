@@ -106,7 +106,12 @@ def test_the_projects_tolerance_file_loads_with_the_documented_bands() -> None:
     assert tol.band_for("flow.step.response_time")[0] == Band(abs=0.2)
     assert tol.band_for("flow.field.accuracy")[0] == Band(abs=1.0)
     assert tol.band_for("depth.step.overshoot") == (Band(abs=1.0), "depth.step.*")
-    assert tol.band_for("depth.step.response_time") == (Band(abs=0.1),
+    assert tol.band_for("depth.step.response_time") == (Band(abs=0.2),
                                                         "depth.step.response_time")
+    assert tol.band_for("depth.step.steady_state_error") == (
+        Band(abs=3.5), "depth.step.steady_state_error")
     assert tol.band_for("depth.field.mean")[0] == Band(abs=0.5)
-    assert tol.band_for("flow.restart.recovery_time") == (Band(rel=0.05), "default")
+    assert tol.band_for("flow.restart.recovery_time") == (Band(abs=0.2),
+                                                          "flow.restart.recovery_time")
+    assert tol.band_for("depth.busload.pass_rate")[0] == Band(abs=2.5)
+    assert tol.band_for("flow.busload.accuracy") == (Band(rel=0.05), "default")
