@@ -1,0 +1,71 @@
+"""Every shipped must-fail profile fails a campaign, in every sample, on what its header names.
+
+A must-fail's defect is in its code, not in its luck: whatever the seed, each sample of a
+campaign of the fast and robustness suites must fail, and each measurement its ``# must-fail:``
+header names that the campaign measured must fail (or be not computed) in at least one
+condition of every sample. ``tests/test_discrimination.py`` and
+``tests/test_suites_depth_discrimination.py`` check the same profiles at one seed, on the
+exact conditions; this checks them the way a release campaign meets them, at seeds none of
+those use. Two samples each on two local workers: ~10 minutes for all of them, so ``slow``.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+MUST_FAIL = ROOT / "dut_profiles" / "must_fail"
+#: seeds no discrimination test uses (they run at each scenario's own seed)
+SEED = 7_700_000
+NOT_PASSED = {"fail", "error"}
+PROFILES = sorted(p for p in MUST_FAIL.glob("*.toml") if "-bus-" not in p.stem)
+
+
+def _header_names(path: Path) -> set[str]:
+    return {n.strip() for line in path.read_text().splitlines()
+            if line.startswith("# must-fail:")
+            for n in line.removeprefix("# must-fail:").split(",") if n.strip()}
+
+
+def test_every_non_bus_must_fail_profile_is_here() -> None:
+    """The glob finds the profiles (a moved folder must not make this file vacuous), and
+    each names what it fails."""
+    assert len(PROFILES) >= 20
+    for path in PROFILES:
+        assert _header_names(path), f"{path.name} has no '# must-fail:' header"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("profile", PROFILES, ids=[p.stem for p in PROFILES])
+def test_must_fail_fails_every_sample_of_a_campaign(tmp_path: Path, profile: Path) -> None:
+    out = tmp_path / "camp"
+    proc = subprocess.run(
+        [sys.executable, "-m", "hil", "campaign", str(profile), "--samples", "2",
+         "--seed", str(SEED), "--bus", "inline", "--dispersion", "none",
+         "--suite", "fast,robustness", "--workers", "2", "--max-reruns", "0",
+         "--no-progress", "--out", str(out)],
+        capture_output=True, text=True, cwd=ROOT, timeout=1800)
+    assert (out / "campaign.json").exists(), proc.stdout + proc.stderr
+    doc = json.loads((out / "campaign.json").read_text())
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    assert doc["summary"]["verdict"] == "fail", doc["summary"]
+    samples = doc["samples"]
+    assert len(samples) == 2
+    named = _header_names(profile)
+    for sample in samples:
+        assert sample["verdict"] == "fail", (sample["seed"], sample.get("error"))
+        measured = {m["name"] for m in sample["measurements"]}
+        checked = named & measured
+        # the busload suite is not in this campaign; everything else a header names is
+        assert checked and all(n.split(".")[1] == "busload" for n in named - measured), (
+            f"seed {sample['seed']}: header names {sorted(named - measured)}, not measured")
+        for name in sorted(checked):
+            outcomes = [m["outcome"] for m in sample["measurements"] if m["name"] == name]
+            assert NOT_PASSED & set(outcomes), (
+                f"{profile.stem}, seed {sample['seed']}: {name} passed every condition "
+                f"({outcomes})")
