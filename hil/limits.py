@@ -45,6 +45,18 @@ _SENSED_RESPONSE_LIMIT_S = 3.5
 _TRUE_STEADY_STATE_LIMIT_PCT = 2.2
 
 
+#: depth.step.true_steady_state_error, from [D] and the rig's physics. The true depth of a
+#: settled step differs from the sensed one by the sensing chain's bias, which no controller
+#: sees (the post-press roller on the clods, eq. 13's line against the arm's arc, the
+#: inclinometer's unit bias): a length, the same at every target (300 seeds of the reference,
+#: issue #16: 0.9-1.4 mm on average, SD 0.3 mm, up to 2.2 mm, at 20, 30 and 40 mm alike). A
+#: tolerance in % of the target gave that one sensor 2 mm at 20 mm and 4 mm at 40 mm, and
+#: failed a controller that held its sensor to 0.06 mm at 20 mm on a 2.0 mm bias. The limit
+#: is the field's tolerance on the mean depth instead, in mm: 10 % of the 30 mm working depth,
+#: 3 mm (the field mean's 27-33 mm, [D] Table 3 and GB/T 20865 as the DUT profiles read them;
+#: the dead-sensor deviation's limit too).
+_TRUE_DEPTH_STEADY_STATE_LIMIT_MM = 3.0
+
 _SPECS = (
     # fertilizer flow rig, [F]
     MeasurementSpec("flow.step.response_time", "s", "fertilizer",
@@ -100,7 +112,11 @@ _SPECS = (
     MeasurementSpec("depth.step.overshoot", "%", "sowing_depth",
                     "peak of the paired sensed depth beyond the target, % of the step"),
     MeasurementSpec("depth.step.steady_state_error", "%", "sowing_depth",
-                    "|mean sensed or true depth over the last 5 s of a step - target| / target"),
+                    "|mean sensed depth over the last 5 s of a step - target| / target"),
+    MeasurementSpec("depth.step.true_steady_state_error", "mm", "sowing_depth",
+                    "|mean true seed depth over the last 5 s of a step - target|: what the "
+                    "seeds got, the sensing bias included",
+                    high=_TRUE_DEPTH_STEADY_STATE_LIMIT_MM),
     MeasurementSpec("depth.field.mean", "mm", "sowing_depth",
                     "mean sampled depth (3 rows x 40 points, headlands excluded)"),
     MeasurementSpec("depth.field.pass_rate", "%", "sowing_depth",

@@ -54,17 +54,19 @@ Measured on it, with the conditions ``from_mm``, ``to_mm`` and ``signal = sensed
 
 Steady state, on the absolute depths of the step run
 ----------------------------------------------------
-``depth.step.steady_state_error`` = ``|mean over [t_end - 5 s, t_end) - to_mm| / to_mm *
-100`` %, on the raw samples (the 5 s mean averages the ripple), recorded twice:
+On the raw samples of the last 5 s before the next change (the 5 s mean averages the
+ripple), two measurements with the conditions ``from_mm`` and ``to_mm``:
 
-* ``signal = sensed``: the sensed depth ``s_step`` (eq. 13): the loop's own regulation error,
-  as the reference calibration reads it;
-* ``signal = true``: the mean true seed depth over the 12 rows (the rig's truth): what the
-  seeds got. It includes the sensing bias no controller can see (the post-press roller rides
-  on the surface clods raise; eq. 13's line against the arm's arc; the inclinometer's
-  +/-0.05 deg unit bias), ~1 mm on this rig (0.1-1.6 mm in a 5 s window).
-
-One limit covers both (limits are per measurement name); the DUT profiles give its reason.
+* ``depth.step.steady_state_error`` (``signal = sensed``) = ``|mean sensed depth - to_mm| /
+  to_mm * 100`` %: the sensed depth ``s_step`` (eq. 13), the loop's own regulation error, as
+  the reference calibration reads it;
+* ``depth.step.true_steady_state_error`` = ``|mean true seed depth - to_mm|`` in **mm**: the
+  mean true depth over the 12 rows (the rig's truth), what the seeds got. It includes the
+  sensing bias no controller can see (the post-press roller rides on the surface clods raise;
+  eq. 13's line against the arm's arc; the inclinometer's +/-0.05 deg unit bias): 0.9-1.4 mm
+  on average, SD 0.3 mm, up to 2.2 mm over 300 seeds, the same at 20, 30 and 40 mm. The bias
+  is a length, not a share of the target, so the measurement is one too, and its limit
+  (``hil/limits.py``) is the field's tolerance on the mean depth, 3 mm.
 
 What the pairing cannot see
 ---------------------------
@@ -179,9 +181,13 @@ def test_depth_step(hil_run, hil_measure, hil_rig, t0: float, t_end: float, star
     hil_measure("depth.step.overshoot", overshoot, conditions=paired, run=result)
 
     # -- the settled levels, absolute ------------------------------------------------------
-    for signal, name in SIGNALS.items():
-        t, y = trace(result, name)
-        mean, error = steady_state_error(t, y, t_end, target_mm)
-        hil_measure("depth.step.steady_state_error", error,
-                    conditions={"from_mm": start_mm, "to_mm": target_mm, "signal": signal},
-                    run=result, note=f"mean {mean:.2f} mm ({mean - target_mm:+.2f} mm)")
+    t, y = trace(result, SIGNALS["sensed"])
+    mean, error = steady_state_error(t, y, t_end, target_mm)
+    hil_measure("depth.step.steady_state_error", error,
+                conditions={"from_mm": start_mm, "to_mm": target_mm, "signal": "sensed"},
+                run=result, note=f"mean {mean:.2f} mm ({mean - target_mm:+.2f} mm)")
+    t, y = trace(result, SIGNALS["true"])
+    mean, _ = steady_state_error(t, y, t_end, target_mm)
+    hil_measure("depth.step.true_steady_state_error", abs(mean - target_mm),
+                conditions={"from_mm": start_mm, "to_mm": target_mm}, run=result,
+                note=f"mean true depth {mean:.2f} mm ({mean - target_mm:+.2f} mm)")

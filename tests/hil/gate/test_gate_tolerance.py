@@ -108,8 +108,9 @@ def test_the_projects_tolerance_file_loads_with_the_documented_bands() -> None:
     assert tol.band_for("depth.step.overshoot") == (Band(abs=1.0), "depth.step.*")
     assert tol.band_for("depth.step.response_time") == (Band(abs=0.2),
                                                         "depth.step.response_time")
-    assert tol.band_for("depth.step.steady_state_error") == (
-        Band(abs=3.5), "depth.step.steady_state_error")
+    assert tol.band_for("depth.step.steady_state_error") == (Band(abs=1.0), "depth.step.*")
+    assert tol.band_for("depth.step.true_steady_state_error") == (
+        Band(abs=0.8), "depth.step.true_steady_state_error")
     assert tol.band_for("depth.field.mean")[0] == Band(abs=0.5)
     assert tol.band_for("flow.restart.recovery_time") == (Band(abs=0.2),
                                                           "flow.restart.recovery_time")
