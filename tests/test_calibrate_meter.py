@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import math
 import re
+import statistics
 import subprocess
 import sys
 import tomllib
@@ -22,9 +24,15 @@ def test_profiles_carry_the_rotation_tests_ff_coeff() -> None:
     # the emulated fertilizer delivers ~3.5 % less than the meter's nominal map (rig.toml)
     assert all(0.93 < r < 0.99 for r in ratios), proc.stdout
     coeff = float(re.search(r"ff_coeff = ([0-9.]+)", proc.stdout).group(1))
+    # an operator's rotation test is itself a measurement: the profiles carry its coefficient
+    # within the standard error of its mean over the 9 weighings (~0.3 %), not to the last
+    # digit, so a rig change that moves the noise of the day (issue #16's centred roller
+    # spread: 4.390 -> 4.387) does not force a controller change; a real recalibration does
+    sem = statistics.stdev(ratios) / math.sqrt(len(ratios)) / statistics.fmean(ratios)
     for name in CALIBRATED:
         with open(PROJECT_ROOT / "dut_profiles" / name, "rb") as f:
-            assert tomllib.load(f)["parameters"]["ff_coeff"] == coeff, name
+            carried = tomllib.load(f)["parameters"]["ff_coeff"]
+        assert abs(carried / coeff - 1.0) <= sem, (name, carried, coeff, sem)
 
 
 def test_calibration_reports_a_failed_run(tmp_path) -> None:

@@ -238,7 +238,7 @@ def test_nmea_speed_sentences() -> None:
 # ------------------------------------------------------------------ rig runs, lockstep, inline
 def test_flow_controller_reaches_a_bench_target(tmp_path: Path) -> None:
     scenario = Scenario(name="refctl-bench-23", description="", rig="fertilizer",
-                        duration_s=12.0, seed=23,
+                        duration_s=20.0, seed=23,
                         initial={"terminal_mode": 1.0, "enable": 0.0, "target_flow_gps": 23.0},
                         events=(Event(at_s=3.0, set={"enable": 1.0}),))
     run = run_scenario(FertilizerRig, scenario, InProcessDut(FlowController("physical")),
@@ -246,7 +246,9 @@ def test_flow_controller_reaches_a_bench_target(tmp_path: Path) -> None:
     assert run.record.get("error") is None
     tr = load_traces(tmp_path / "traces.npz")[0]
     t = tr["time_s"]
-    late = t > 8.0
+    # judged as the step suite judges a steady state: over the last 10 s, once the learnt meter
+    # factor has settled (5 s after the enable it still carried the first report's noise)
+    late = t > 10.0
     sensed = np.mean([tr[f"sensed_flow_{r}_gps"][late] for r in range(1, 5)])
     true = np.mean([tr[f"flow_at_sensor_{r}_gps"][late] for r in range(1, 5)])
     assert sensed == pytest.approx(23.0, rel=0.03)
