@@ -17,7 +17,7 @@ from typing import Any
 
 import pytest
 
-from hil.dut.profile import load_profile
+from hil.dut.profile import load_profile, must_fail_claims
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "dut_profiles" / "fertilizer-piecewise-pid-daemon.toml"
@@ -72,19 +72,12 @@ EXPECTED: dict[str, dict[str, int]] = {
 }
 
 
-def _header_names(path: Path) -> set[str]:
-    """The measurements a must-fail profile's ``# must-fail:`` header names."""
-    return {n.strip() for line in path.read_text().splitlines()
-            if line.startswith("# must-fail:")
-            for n in line.removeprefix("# must-fail:").split(",") if n.strip()}
-
-
 def test_every_must_fail_header_is_checked_here() -> None:
     """What a fertilizer profile's header says it fails is what this file checks it fails
     (tests/test_suites_coverage.py counts the headers)."""
     for name, expected in EXPECTED.items():
         slow = {"flow.busload.accuracy"} if name == "fertilizer-ignores-setpoint-daemon" else set()
-        assert _header_names(MUST_FAIL / f"{name}.toml") <= set(expected) | slow, name
+        assert must_fail_claims(MUST_FAIL / f"{name}.toml") <= set(expected) | slow, name
 
 
 def _qualify(profile: Path, out: Path, selection: str = SELECTION, suite: str | None = None,

@@ -18,6 +18,8 @@ from pathlib import Path
 
 import pytest
 
+from hil.dut.profile import must_fail_claims
+
 ROOT = Path(__file__).resolve().parents[1]
 MUST_FAIL = ROOT / "dut_profiles" / "must_fail"
 #: seeds no discrimination test uses (they run at each scenario's own seed)
@@ -26,18 +28,12 @@ NOT_PASSED = {"fail", "error"}
 PROFILES = sorted(p for p in MUST_FAIL.glob("*.toml") if "-bus-" not in p.stem)
 
 
-def _header_names(path: Path) -> set[str]:
-    return {n.strip() for line in path.read_text().splitlines()
-            if line.startswith("# must-fail:")
-            for n in line.removeprefix("# must-fail:").split(",") if n.strip()}
-
-
 def test_every_non_bus_must_fail_profile_is_here() -> None:
     """The glob finds the profiles (a moved folder must not make this file vacuous), and
     each names what it fails."""
     assert len(PROFILES) >= 20
     for path in PROFILES:
-        assert _header_names(path), f"{path.name} has no '# must-fail:' header"
+        assert must_fail_claims(path), f"{path.name} has no '# must-fail:' header"
 
 
 @pytest.mark.slow
@@ -56,7 +52,7 @@ def test_must_fail_fails_every_sample_of_a_campaign(tmp_path: Path, profile: Pat
     assert doc["summary"]["verdict"] == "fail", doc["summary"]
     samples = doc["samples"]
     assert len(samples) == 2
-    named = _header_names(profile)
+    named = must_fail_claims(profile)
     for sample in samples:
         assert sample["verdict"] == "fail", (sample["seed"], sample.get("error"))
         measured = {m["name"] for m in sample["measurements"]}

@@ -19,14 +19,13 @@ may only shrink (a covered measurement left in it fails too).
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
+from hil.dut.profile import must_fail_claims
 from hil.limits import MEASUREMENTS
 
 ROOT = Path(__file__).resolve().parents[1]
 MUST_FAIL = ROOT / "dut_profiles" / "must_fail"
-HEADER = re.compile(r"^#\s*must-fail:\s*(.+)$", re.MULTILINE)
 
 #: measurement -> the framework test that fails it with a synthetic DUT or synthetic data
 SYNTHETIC: dict[str, str] = {
@@ -60,10 +59,8 @@ def registered() -> dict[str, list[str]]:
     """measurement -> the must-fail profiles (file names) whose header names it."""
     out: dict[str, list[str]] = {}
     for path in sorted(MUST_FAIL.rglob("*.toml")):
-        for line in HEADER.findall(path.read_text(encoding="utf-8")):
-            for name in (n.strip() for n in line.split(",")):
-                if name:
-                    out.setdefault(name, []).append(path.name)
+        for name in sorted(must_fail_claims(path)):
+            out.setdefault(name, []).append(path.name)
     return out
 
 
@@ -91,7 +88,7 @@ def test_gaps_only_shrink() -> None:
 
 def test_every_must_fail_profile_says_what_it_must_fail() -> None:
     silent = [p.name for p in sorted(MUST_FAIL.glob("*.toml"))
-              if not HEADER.search(p.read_text(encoding="utf-8"))]
+              if not must_fail_claims(p)]
     assert not silent, f"must-fail profiles without a '# must-fail:' header: {silent}"
 
 

@@ -386,6 +386,28 @@ def load_profile(path: str | Path) -> DutProfile:
                       sha256=hashlib.sha256(raw).hexdigest())
 
 
+#: a must-fail profile's registration line (docs/guide/suites.md, "The coverage rule")
+MUST_FAIL_HEADER = re.compile(r"^#\s*must-fail:\s*(.+)$", re.MULTILINE)
+
+
+def must_fail_claims(path: str | Path) -> set[str]:
+    """The measurements a must-fail profile claims to fail.
+
+    Parameters
+    ----------
+    path : str or Path
+        A must-fail DUT profile.
+
+    Returns
+    -------
+    set of str
+        The names its ``# must-fail:`` header lines list (empty when it has none).
+    """
+    text = Path(path).read_text(encoding="utf-8")
+    return {name.strip() for line in MUST_FAIL_HEADER.findall(text)
+            for name in line.split(",") if name.strip()}
+
+
 def database_path(database: str, profile_path: Path | None) -> Path:
     """Where ``wiring.database`` points.
 
