@@ -33,6 +33,9 @@ from hil.gate import (
     render_text,
     write_baseline,
 )
+from hil.gate.completeness import incomplete_reason
+from hil.gate.jsonfile import read_json
+from hil.validation import help_with_range, option_type
 
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -62,16 +65,30 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
     gate.add_argument("--force", action="store_true",
                       help="write a baseline from a record that did not pass; compare with "
                            "or overwrite a baseline of another DUT")
-    gate.add_argument("--shift-fraction", type=float, default=0.25,  # campaign (issue 15)
-                      help="campaign records only: a mean shift is a regression beyond this "
-                           "fraction of the tolerance band (default: 0.25)")
+    gate.add_argument("--shift-fraction", type=option_type("gate --shift-fraction"),
+                      default=0.25,  # campaign (issue 15)
+                      help=help_with_range("gate --shift-fraction",
+                                           "campaign records only: a mean shift is a "
+                                           "regression beyond this fraction of the "
+                                           "tolerance band (default: 0.25)"))
     gate.set_defaults(func=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
     from hil.campaign.record import is_campaign
 
-    if is_campaign(args.record):  # a campaign record (issue 15): compared by distribution
+    # one rule for every record kind, before anything is judged: a record that did not
+    # finish has no verdict (exit 2, saying why), with or without a baseline
+    campaign = is_campaign(args.record)
+    source = Path(args.record)
+    if campaign and source.is_dir():
+        source = source / "campaign.json"
+    what = "campaign record" if campaign else "qualification record"
+    incomplete = incomplete_reason(read_json(source, what), path=str(source))
+    if incomplete:
+        print(f"hil: error: {incomplete}", file=sys.stderr)
+        return 2
+    if campaign:  # a campaign record (issue 15): compared by distribution
         from hil.gate.campaign_cli import run_campaign_gate
 
         return run_campaign_gate(args)
@@ -80,10 +97,6 @@ def _run(args: argparse.Namespace) -> int:
     if args.summary:
         check_writable_file(args.summary, "--summary")
     record = load_record(args.record)
-    incomplete = record.incomplete_reason()
-    if incomplete:   # an interrupted qualification is never judged, however it reads
-        print(f"hil: error: {incomplete}", file=sys.stderr)
-        return 2
     tolerances = load_tolerances(args.tolerance) if args.tolerance else DEFAULT_TOLERANCES
     if args.update_baseline and not args.baseline:
         raise ConfigError("--update-baseline needs --baseline PATH (where to write it)",

@@ -6,11 +6,36 @@ from __future__ import annotations
 import argparse
 import shutil
 import sys
+from typing import Any
 
 from hil.campaign.record import load_campaign
 from hil.errors import ConfigError
 from hil.gate.campaign import compare_campaigns, render_campaign_text
+from hil.gate.completeness import incomplete_reason
 from hil.gate.tolerance import DEFAULT_TOLERANCES, load_tolerances
+
+
+def check_campaign_baseline(record: dict[str, Any], baseline: dict[str, Any], *, path: str,
+                            force: bool) -> None:
+    """Refuse a baseline that cannot be compared with ``record``: one that did not finish, or
+    (unless ``force``) one of another rig or another DUT. Raises :class:`ConfigError` naming
+    ``--baseline`` and both sides."""
+    incomplete = incomplete_reason(baseline, path=path)
+    if incomplete:
+        raise ConfigError(f"not a baseline: {incomplete}", key="--baseline")
+    rig, base_rig = _rig(record), _rig(baseline)
+    if rig != base_rig:      # other measurements, other limits: never comparable
+        raise ConfigError(f"{path} is a campaign of the {base_rig} rig, the record one of the "
+                          f"{rig} rig: compare campaigns of the same rig", key="--baseline")
+    name, base_name = record["dut"].get("name"), baseline["dut"].get("name")
+    if name != base_name and not force:
+        raise ConfigError(f"{path} is a campaign of {base_name}, the record one of {name} "
+                          f"(--force compares them anyway)", key="--baseline")
+
+
+def _rig(doc: dict[str, Any]) -> str:
+    rig = doc.get("rig")
+    return str(rig.get("name") if isinstance(rig, dict) else rig)
 
 
 def run_campaign_gate(args: argparse.Namespace) -> int:
@@ -25,6 +50,7 @@ def run_campaign_gate(args: argparse.Namespace) -> int:
     baseline = None
     if args.baseline and (Path(args.baseline).exists() or not args.update_baseline):
         baseline = load_campaign(args.baseline)
+        check_campaign_baseline(record, baseline, path=args.baseline, force=args.force)
     result = compare_campaigns(record, baseline, tolerances,
                                allow_regressions=args.allow_regressions,
                                shift_fraction=args.shift_fraction)

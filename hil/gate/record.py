@@ -109,13 +109,14 @@ class QualificationRecord:
     tests_planned: int | None = None
 
     def incomplete_reason(self) -> str | None:
-        """Why the gate must not judge this record (None: it may)."""
-        if self.verdict != "interrupted" and (self.complete or self.verdict == "fail"):
-            return None      # complete, or incomplete but failed already: judged as a fail
-        done = ("" if self.tests_planned is None else
-                f" after {self.tests_completed} of {self.tests_planned} tests")
-        return (f"{self.path}: the qualification was interrupted{done}; an incomplete record "
-                f"has no verdict: run hil qualify again")
+        """Why the gate must not judge this record (None: it may); the rule of
+        :func:`hil.gate.completeness.incomplete_reason`, the same for every record kind."""
+        from hil.gate.completeness import incomplete_reason
+
+        return incomplete_reason({"schema": RECORD_SCHEMA, "verdict": self.verdict,
+                                  "complete": self.complete,
+                                  "tests_completed": self.tests_completed,
+                                  "tests_planned": self.tests_planned}, path=self.path)
 
     def by_key(self) -> dict[str, RecordMeasurement]:
         return {m.key: m for m in self.measurements}
