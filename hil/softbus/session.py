@@ -65,8 +65,11 @@ class ClientSession:
     # - a plain poller loop instead of asyncio (see hil.softbus.loop); ``write`` calls
     #   ``send()`` at once when nothing is queued.
     # - TCP_NODELAY on every client socket (without it Nagle holds back-to-back frames for up
-    #   to 40 ms). No TCP_QUICKACK: the ACK for a frame rides on the next frame back; forcing
-    #   it costs a setsockopt per read and a bare ACK, +2-6 µs server CPU per round trip.
+    #   to 40 ms). TCP_QUICKACK after every read (hil.softbus.transport): the client's side
+    #   of Nagle is the client's, and a DUT that keeps it on and answers SYNC with several
+    #   small writes waited for a delayed ACK (~40 ms) before each write after the first,
+    #   25x slower in lockstep (issue 31). It costs a setsockopt per read and a bare ACK
+    #   (+2-6 µs server CPU per round trip); benchmarks/bench_nagle.py measures both clients.
     # - Busy polling (bounded, adaptive, see hil.softbus.loop.BusyPoll) in a bus process.
     def connection_made(self, transport: Transport, sock: socket.socket | None = None) -> None:
         self.transport = transport

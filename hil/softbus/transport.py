@@ -16,6 +16,10 @@ from hil.softbus.loop import READ, WRITE, EventLoop
 if TYPE_CHECKING:
     from hil.softbus.session import ClientSession
 
+#: Linux's TCP_QUICKACK (12): a one-shot "acknowledge now". Where the system has none the
+#: option fails and is skipped (a Nagle client is then as slow as its peer's delayed ACK)
+_TCP_QUICKACK = getattr(socket, "TCP_QUICKACK", 12)
+
 class Transport(Protocol):
     """What a client's connection offers the server (the socket transport, or a test's fake)."""
 
@@ -101,6 +105,10 @@ class SocketTransport:
             if not data:
                 self.close(None)
                 return
+            # acknowledge at once: a client that keeps Nagle on holds its next small write
+            # until this ACK, which Linux would otherwise delay by up to 40 ms (issue 31)
+            with contextlib.suppress(OSError):
+                self.sock.setsockopt(socket.IPPROTO_TCP, _TCP_QUICKACK, 1)
             self.client.data_received(data)
 
     def close(self, exc: Exception | None = None) -> None:
