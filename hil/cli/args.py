@@ -9,7 +9,9 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import shutil
 from pathlib import Path
+from typing import Any
 
 from hil.dut.factory import check_bus_for_dut, in_process_bus
 from hil.errors import ConfigError
@@ -19,9 +21,9 @@ from hil.softbus.server import DEFAULT_PORT
 #: as JSON/TOML integers (64-bit): 0 .. 2**63 - 1
 SEED_MAX = 2**63 - 1
 
-__all__ = ["SEED_MAX", "add_bus_clock", "add_host_port", "check_bus_for_dut", "check_log_path",
-           "check_positive_seconds", "check_seed", "check_writable_file", "in_process_bus",
-           "port_number", "prepare_out_dir"]
+__all__ = ["SEED_MAX", "add_bus_clock", "add_host_port", "check_bus_for_dut", "check_keyword",
+           "check_launchable", "check_log_path", "check_positive_seconds", "check_seed",
+           "check_writable_file", "in_process_bus", "port_number", "prepare_out_dir"]
 
 
 def add_host_port(parser: argparse.ArgumentParser) -> None:
@@ -148,3 +150,48 @@ def check_bus_spec(spec: str, option: str = "--bus") -> None:
         if not host or not port.isdigit() or not 1 <= int(port) <= 65535:
             raise ConfigError(f"{spec}: socketcand needs HOST:PORT with a port 1..65535 "
                               "(e.g. socketcand:127.0.0.1:29536/can0)", key=option)
+
+
+def check_keyword(expression: str | None, option: str = "-k") -> None:
+    """Refuse a ``-k`` expression pytest cannot parse, naming the option and the column.
+
+    pytest would only say so once collection ran, as an error that reads like an interrupted
+    run; its own parser (``_pytest.mark.expression``, the one ``-k`` uses: pytest has no
+    public one) checks it before anything starts."""
+    if expression is None:
+        return
+    from _pytest.mark.expression import Expression
+
+    if not expression.strip():
+        raise ConfigError("an empty expression selects nothing: leave -k out to run every test",
+                          key=option)
+    try:
+        Expression.compile(expression)
+    except SyntaxError as exc:
+        raise ConfigError(f"{expression!r} is not a pytest -k expression: at column "
+                          f"{exc.offset}: {exc.msg}", key=option) from None
+
+
+def check_launchable(profile: Any, *, bus: str, clock: str, build: Path | None) -> None:
+    """Refuse a process DUT whose command cannot be executed (missing, not executable, a
+    directory), naming the file and ``[launch] command``, before any run starts: otherwise
+    every test fails with the same setup error and no measurement."""
+    from hil.dut.factory import runs_inprocess
+    from hil.dut.process import command_line
+
+    if profile.dut.kind == "physical" or runs_inprocess(profile, bus) \
+            or not profile.launch.command:
+        return
+    program = command_line(profile, bus=bus, clock=clock, build=build)[0]
+    where = {"path": str(profile.path), "key": "launch.command"}
+    if os.sep not in program:
+        if shutil.which(program) is None:
+            raise ConfigError(f"{program!r} is not a command on PATH", **where)
+        return
+    target = Path(program)
+    if not target.exists():
+        raise ConfigError(f"{target} does not exist", **where)
+    if target.is_dir() or not os.access(target, os.X_OK):
+        raise ConfigError(f"{target} is not an executable file "
+                          f"({'a directory' if target.is_dir() else 'no execute permission'})",
+                          **where)

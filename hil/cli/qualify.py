@@ -19,15 +19,9 @@ that no gate passes.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import datetime as dt
 import json
-import os
-import shutil
-import signal
 import sys
-import uuid
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -35,6 +29,8 @@ from hil.cli.args import (
     add_bus_clock,
     check_bus_for_dut,
     check_bus_spec,
+    check_keyword,
+    check_launchable,
     check_seed,
     prepare_out_dir,
 )
@@ -43,6 +39,7 @@ from hil.dut.build import ensure_built, with_build_id
 from hil.dut.profile import DutProfile, load_profile
 from hil.errors import ConfigError, HilError
 from hil.record.atomic import write_json_atomic
+from hil.record.staging import Staging, signals_held
 
 DEFAULT_SUITES = "fast,robustness"
 EXIT_BY_VERDICT = {"pass": 0, "fail": 1, "interrupted": 130}
@@ -125,59 +122,21 @@ def interrupted_record(profile: DutProfile, args: argparse.Namespace, *, run_id:
             "limits": {}, "measurements": [], "tests": [], "runs": [], "timing": None}
 
 
-@contextlib.contextmanager
-def _signals_held() -> Iterator[None]:
-    """SIGINT/SIGTERM wait (pending) while the outputs are moved in, then arrive."""
-    held = {signal.SIGINT, signal.SIGTERM}
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
-
-
-def _clear_stale_staging(out: Path) -> None:
-    """Staging directories of qualifications whose process is gone (killed) are garbage."""
-    for stale in out.glob(f"{STAGING_PREFIX}*"):
-        pid = stale.name.removeprefix(STAGING_PREFIX).split("-", 1)[0]
-        if pid.isdigit() and not Path(f"/proc/{pid}").exists():
-            shutil.rmtree(stale, ignore_errors=True)
-
-
-def promote(stage: Path, out: Path) -> None:
-    """Move the staged outputs into ``out``: each old one aside only once its replacement
-    is there to take its place, ``record.json`` last and atomically."""
-    trash = stage / ".replaced"
-    trash.mkdir(exist_ok=True)
-    for name in OUTPUTS:
-        new = stage / name
-        if not new.exists():
-            continue
-        old = out / name
-        if old.exists() or old.is_symlink():
-            os.replace(old, trash / name)
-        os.replace(new, old)
-    os.replace(stage / "record.json", out / "record.json")
-    shutil.rmtree(stage, ignore_errors=True)
-
-
 def _qualify(args: argparse.Namespace) -> int:
     try:
-        profile, out, stage, run_id = _prepare(args)
+        profile, staging = _prepare(args)
     except KeyboardInterrupt:
         print("hil: interrupted before the qualification began; --out is untouched",
               file=sys.stderr)
         return 130
+    out = staging.out
     code: int | None = None
     try:
-        code = _run_suites(args, profile, stage)
+        with staging.writing():   # a full disk names --out and leaves no staging behind
+            code = _run_suites(args, profile, staging.path)
     finally:
-        with _signals_held():
-            if not (stage / "record.json").exists():
-                write_json_atomic(stage / "record.json", interrupted_record(
-                    profile, args, run_id=run_id,
-                    note="interrupted before the suites wrote their record"))
-            promote(stage, out)
+        if staging.path.exists():
+            _finish(staging, profile, args, code)
     record = json.loads((out / "record.json").read_text())
     verdict = record["verdict"]
     if code is not None and not record.get("tests") and verdict == "error":
@@ -186,7 +145,31 @@ def _qualify(args: argparse.Namespace) -> int:
     return EXIT_BY_VERDICT.get(verdict, 2)
 
 
-def _prepare(args: argparse.Namespace) -> tuple[DutProfile, Path, Path, str]:
+def _finish(staging: Staging, profile: DutProfile, args: argparse.Namespace,
+            code: int | None) -> None:
+    """Promote what the suites staged.
+
+    When they wrote no record: an interruption (``code`` None: they raised) is recorded as
+    ``interrupted``; pytest returning without one (a usage or internal error) is an
+    ``error``, never an interruption.
+    """
+    record = staging.path / "record.json"
+    with signals_held():
+        if not record.exists():
+            if code is None:
+                doc = interrupted_record(profile, args, run_id=staging.run_id,
+                                         note="interrupted before the suites wrote their "
+                                              "record")
+            else:
+                doc = {**interrupted_record(profile, args, run_id=staging.run_id,
+                                            note=f"the suites did not run (pytest exit "
+                                                 f"{code}); see the output above"),
+                       "verdict": "error"}
+            write_json_atomic(record, doc)
+        staging.promote()
+
+
+def _prepare(args: argparse.Namespace) -> tuple[DutProfile, Staging]:
     """Check every option, then stage: from the end of this on, ``record.json`` says the
     qualification has not finished until it has."""
     # every option is checked before anything runs: a bad one is exit 2, never the DUT's fault
@@ -198,36 +181,41 @@ def _prepare(args: argparse.Namespace) -> tuple[DutProfile, Path, Path, str]:
         parse_overrides(args.rig_override, rig=profile.dut.rig, base=profile.rig_config)
     check_suites(args.suite)
     check_seed(args.seed)
+    check_keyword(args.keyword)
     check_bus_spec(args.bus)
     check_bus_for_dut(args.bus, profile.dut.kind,
                       inprocess_twin=bool(profile.launch.inprocess))
     out = prepare_out_dir(args.out)
     rig = profile.dut.rig
     suite_location(rig)                            # a rig without suites is a setup error
-    _clear_stale_staging(out)
-    run_id = uuid.uuid4().hex[:12]
-    stage = out / f"{STAGING_PREFIX}{os.getpid()}-{run_id}"
+    _build(args, profile)                          # a DUT that cannot start never runs
+    staging = Staging(out, prefix=STAGING_PREFIX, outputs=OUTPUTS, record="record.json")
     # from here on, whatever happens, record.json says this qualification did not finish
-    # until it has; the previous record is kept next to it
-    if (out / "record.json").exists():
-        shutil.copy2(out / "record.json", out / "record.previous.json")
-    with _signals_held():   # the staging directory and the placeholder record, or neither
-        stage.mkdir()
-        write_json_atomic(out / "record.json", interrupted_record(
-            profile, args, run_id=run_id, note="the qualification started and has not "
-                                               "finished (or was killed)"))
-    return profile, out, stage, run_id
+    # until it has; the previous record is kept next to it (record.previous.json)
+    staging.begin(interrupted_record(profile, args, run_id=staging.run_id,
+                                     note="the qualification started and has not finished "
+                                          "(or was killed)"))
+    return profile, staging
 
 
-def _run_suites(args: argparse.Namespace, profile: DutProfile, stage: Path) -> int:
-    import pytest
-
+def _build(args: argparse.Namespace, profile: DutProfile) -> None:
+    """Build the DUT (cached) and check that its command can be executed: both before
+    ``--out`` is touched, so a DUT that cannot start is a setup error, not three failed
+    tests."""
+    build_dir: Path | None = None
     if args.bus != "inline" and profile.build is not None:
         print(f"hil: building {profile.name} (cached after the first time) ...",
               file=sys.stderr)
         build = ensure_built(profile)
         print(f"hil: build {'cached' if build.get('cached') else 'done'}: "
               f"{build.get('build_dir')}", file=sys.stderr)
+        build_dir = Path(str(build["build_dir"])) if build.get("build_dir") else None
+    check_launchable(profile, bus=args.bus, clock=args.clock, build=build_dir)
+
+
+def _run_suites(args: argparse.Namespace, profile: DutProfile, stage: Path) -> int:
+    import pytest
+
     print(f"hil: qualifying {profile.name} {profile.dut.version} on the {profile.dut.rig} rig "
           f"({args.bus}, {args.clock}, suites {args.suite})", file=sys.stderr)
     return int(pytest.main(pytest_args(args, stage, profile.dut.rig)))

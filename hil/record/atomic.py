@@ -32,7 +32,11 @@ def write_text_atomic(path: str | Path, text: str) -> Path:
         ``path``.
     """
     target = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp",
+                                   dir=target.parent)
+    except OSError as exc:
+        raise named_os_error(exc, target) from exc
     try:
         # mkstemp makes the file 0600; a record is as readable as any file the user writes
         umask = os.umask(0)
@@ -43,11 +47,40 @@ def write_text_atomic(path: str | Path, text: str) -> Path:
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, target)
+    except OSError as exc:   # "No space left on device" names the file it could not write
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise named_os_error(exc, target) from exc
     except BaseException:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
     return target
+
+
+def named_os_error(exc: OSError, path: str | Path) -> OSError:
+    """``exc`` naming ``path`` when it names no file.
+
+    A failed ``write`` or ``fsync`` names none, and "No space left on device" alone does not
+    say which disk is full.
+
+    Parameters
+    ----------
+    exc : OSError
+        The error as raised.
+    path : str or Path
+        The file (or directory) being written.
+
+    Returns
+    -------
+    OSError
+        ``exc`` itself when it names a file, else a copy of it naming ``path``.
+    """
+    if exc.filename is not None:
+        return exc
+    named = type(exc)(exc.errno, exc.strerror or str(exc), str(path))
+    named.__cause__ = exc
+    return named
 
 
 def write_json_atomic(path: str | Path, data: Any) -> Path:

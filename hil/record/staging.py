@@ -1,0 +1,151 @@
+"""Stage, then promote: how every command that writes into ``--out`` writes.
+
+A command's outputs (a record, its report, its run directories) are written into a hidden
+staging directory inside ``--out`` and moved in only when the command ends, the record last and
+atomically (:meth:`Staging.promote`). So
+
+* a command that fails before it begins (a bad option, an unreachable scheduler, a full disk)
+  leaves ``--out`` exactly as it found it (:meth:`Staging.discard`);
+* once it has begun, ``--out``'s record says "not finished" until it has (the placeholder of
+  :meth:`Staging.begin`), and the previous record is kept as ``<record>.previous.json``: a kill
+  at any moment leaves a record that no gate passes and loses nothing already recorded;
+* a write that fails for want of space (or any other ``OSError``) names the path it was
+  writing, and the staging directory is removed.
+
+SIGINT and SIGTERM are held (pending, never dropped) while the staging directory and the
+placeholder are made and while outputs move in; they arrive as soon as the move is done.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import signal
+import uuid
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+from hil.record.atomic import named_os_error, write_json_atomic
+
+__all__ = ["Staging", "named_os_error", "signals_held"]
+
+
+@contextlib.contextmanager
+def signals_held() -> Iterator[None]:
+    """SIGINT/SIGTERM wait (pending) inside the block, then arrive: held, never lost."""
+    held = {signal.SIGINT, signal.SIGTERM}
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+class Staging:
+    """The staging directory of one command writing into ``out``.
+
+    Parameters
+    ----------
+    out : Path
+        The output directory (it must exist).
+    prefix : str
+        The staging directory's name prefix (``.qualify-``, ``.campaign-``); followed by the
+        process id, so a later command can tell a dead command's staging from a live one's.
+    outputs : sequence of str
+        The files and directories the command writes besides the record, moved in first.
+    record : str
+        The record's file name, moved in last.
+
+    Examples
+    --------
+    >>> import tempfile, json
+    >>> out = Path(tempfile.mkdtemp())
+    >>> staging = Staging(out, prefix=".demo-", outputs=("report.html",), record="r.json")
+    >>> staging.begin({"status": "interrupted"})
+    >>> _ = (staging.path / "r.json").write_text('{"status": "complete"}')
+    >>> staging.promote()
+    >>> json.loads((out / "r.json").read_text())["status"], staging.path.exists()
+    ('complete', False)
+    """
+
+    def __init__(self, out: Path, *, prefix: str, outputs: Sequence[str], record: str) -> None:
+        self.out = Path(out)
+        self.prefix = prefix
+        self.outputs = tuple(outputs)
+        self.record = record
+        self.run_id = uuid.uuid4().hex[:12]
+        self.path = self.out / f"{prefix}{os.getpid()}-{self.run_id}"
+
+    @property
+    def previous(self) -> Path:
+        """Where the record found in ``out`` is kept while (and after) this one is made."""
+        return self.out / (Path(self.record).stem + ".previous" + Path(self.record).suffix)
+
+    def clear_stale(self) -> None:
+        """Remove staging directories of this kind whose process is gone (killed)."""
+        for stale in self.out.glob(f"{self.prefix}*"):
+            pid = stale.name.removeprefix(self.prefix).split("-", 1)[0]
+            if pid.isdigit() and not Path(f"/proc/{pid}").exists():
+                shutil.rmtree(stale, ignore_errors=True)
+
+    def begin(self, placeholder: dict[str, Any] | None) -> None:
+        """Make the staging directory, and with ``placeholder`` mark ``out`` as in progress.
+
+        The record found in ``out`` is kept as :attr:`previous` and ``placeholder`` (a record
+        saying "not finished") takes its place. Both or neither, signals held.
+        """
+        self.clear_stale()
+        with signals_held():
+            try:
+                self.path.mkdir()
+                if placeholder is not None:
+                    if (self.out / self.record).exists():
+                        shutil.copy2(self.out / self.record, self.previous)
+                    write_json_atomic(self.out / self.record, placeholder)
+            except OSError as exc:
+                shutil.rmtree(self.path, ignore_errors=True)
+                raise named_os_error(exc, self.out) from exc
+
+    def promote(self) -> None:
+        """Move the staged outputs into ``out``, the record last, and remove the staging.
+
+        Each old output goes aside only once its replacement is there to take its place; the
+        record moves atomically. Signals are held until it is done.
+        """
+        with signals_held():
+            trash = self.path / ".replaced"
+            try:
+                trash.mkdir(exist_ok=True)
+                for name in self.outputs:
+                    new = self.path / name
+                    if not new.exists():
+                        continue
+                    old = self.out / name
+                    if old.exists() or old.is_symlink():
+                        os.replace(old, trash / name)
+                    os.replace(new, old)
+                if (self.path / self.record).exists():
+                    os.replace(self.path / self.record, self.out / self.record)
+            except OSError as exc:
+                raise named_os_error(exc, self.out) from exc
+            finally:
+                shutil.rmtree(self.path, ignore_errors=True)
+
+    def discard(self) -> None:
+        """Remove the staging directory and what it holds (``out`` is left as it is)."""
+        shutil.rmtree(self.path, ignore_errors=True)
+
+    @contextlib.contextmanager
+    def writing(self) -> Iterator[Path]:
+        """A block that writes into the staging directory.
+
+        An ``OSError`` that names no file is re-raised naming ``out``, and the staging
+        directory is removed.
+        """
+        try:
+            yield self.path
+        except OSError as exc:
+            self.discard()
+            raise named_os_error(exc, self.out) from exc
