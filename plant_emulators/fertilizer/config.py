@@ -28,6 +28,7 @@ from hil.config import check_fraction as _fraction
 from hil.config import check_non_negative as _non_negative
 from hil.config import check_positive as _positive
 from hil.config import load_toml
+from hil.errors import ConfigError
 
 DEFAULT_RIG_TOML = Path(__file__).with_name("rig.toml")
 """The packaged rig configuration."""
@@ -348,6 +349,10 @@ class WiringConfig:
     tractor_speed_period_ms: int
     setpoint_period_ms: int
     analog_output_heartbeat_ms: int
+    #: the binding of the rig quantities in force (:mod:`hil.contract.binding`); empty: the
+    #: rig's own, ``<dbc_file stem>.binding.toml`` beside the DBC. A DUT profile's ``[wiring]
+    #: binding`` sets it.
+    binding_file: str = ""
 
     def __post_init__(self) -> None:
         _positive(self, "bitrate_bps", "ground_speed_period_ms", "tractor_speed_period_ms",
@@ -414,11 +419,28 @@ def load_rig_config(path: str | Path | None = None, *,
         When the file is missing or invalid; the message names the file and the key.
     """
     path = Path(path) if path is not None else DEFAULT_RIG_TOML
+    _refuse_dbc_override(overrides, source)
     cfg = load_toml(path, FertilizerRigConfig, overrides=overrides, source=source)
     base = path.resolve().parent
+    dbc = (base / cfg.wiring.dbc_file).resolve()
+    binding = Path(cfg.wiring.binding_file) if cfg.wiring.binding_file \
+        else dbc.with_name(dbc.stem + ".binding.toml")
     wiring = dataclasses.replace(
         cfg.wiring,
-        dbc_file=str((base / cfg.wiring.dbc_file).resolve()),
+        dbc_file=str(dbc),
         analog_output_eds_file=str((base / cfg.wiring.analog_output_eds_file).resolve()),
+        binding_file=str(binding if binding.is_absolute() else (base / binding).resolve()),
     )
     return dataclasses.replace(cfg, wiring=wiring)
+
+
+def _refuse_dbc_override(overrides: Mapping[str, Any] | None, source: str) -> None:
+    """``[rig] wiring.dbc_file`` was a partial path to another database (ids still tied to the
+    node ids): the DUT's database is bound with ``[wiring] database`` and ``binding``."""
+    wiring = (overrides or {}).get("wiring")
+    if isinstance(wiring, Mapping) and "dbc_file" in wiring:
+        raise ConfigError(
+            "the rig's own DBC cannot be replaced: name your controller's database in the "
+            "profile's [wiring] database = FILE and bind it with [wiring] binding = FILE "
+            "(`hil profile bind DATABASE --rig fertilizer -o FILE` writes a start; see "
+            "docs/guide/binding.md)", path=source or None, key="rig.wiring.dbc_file")

@@ -29,44 +29,42 @@ Example
 
 from __future__ import annotations
 
-import math
-from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import can
-from cantools.database.can import Message, Signal
-from cantools.database.errors import Error as CantoolsError
 
+from hil.contract.database import BusDatabase, SignalValue
+from hil.contract.j1939 import j1939_frame_id, j1939_pgn
+from hil.contract.quantity import CanopenNode, Contract, Quantity
 from hil.errors import ConfigError, FrameError
-from hil.rig.fastcodec import KIND_IDENTITY, KIND_LINEAR, FrameLayout, load_compiled
-from plant_emulators.fertilizer.config import FertilizerRigConfig
+from plant_emulators.fertilizer.config import FertilizerRigConfig, load_rig_config
 from plant_emulators.fertilizer.flow_sensor import FlowReport, SensorStatus
 from plant_emulators.fertilizer.ground_speed import HallReport, TractorSpeedReport
 
 __all__ = [
+    "DEFAULT_BINDING",
     "DEFAULT_DBC",
+    "QUANTITIES",
     "FertilizerDatabase",
     "FrameError",
     "NmtCommand",
     "NmtState",
     "SignalValue",
+    "bus_contract",
     "j1939_frame_id",
     "j1939_pgn",
 ]
 
 DEFAULT_DBC = Path(__file__).with_name("db") / "fertilizer.dbc"
 """The packaged database."""
+DEFAULT_BINDING = Path(__file__).with_name("db") / "fertilizer.binding.toml"
+"""The packaged database's binding of the rig quantities (the rig's default binding)."""
 
 PGN_WHEEL_BASED_SPEED = 65096
 """ISO 11783-7 Wheel-based Speed and Distance (0xFE48)."""
 PGN_GROUND_BASED_SPEED = 65097
 """ISO 11783-7 Ground-based Speed and Distance (0xFE49)."""
-
-SignalValue = int | float
-"""A signal's physical value (value tables are carried as their integers)."""
-
-
 
 
 class NmtState:
@@ -88,51 +86,7 @@ class NmtCommand:
     RESET_COMMUNICATION = 130
 
 
-def j1939_frame_id(*, priority: int, pgn: int, source_address: int,
-                   destination: int | None = None) -> int:
-    """The 29-bit identifier of a J1939 / ISO 11783 frame.
-
-    Parameters
-    ----------
-    priority : int
-        0 (highest) .. 7.
-    pgn : int
-        Parameter group number (18 bits).
-    source_address : int
-        Sender's address, 0..253.
-    destination : int, optional
-        Destination address for PDU1 PGNs (PF < 240); must be omitted for PDU2.
-
-    Returns
-    -------
-    int
-        The identifier (without any extended-frame flag bit).
-    """
-    if not 0 <= priority <= 7:
-        raise ValueError(f"priority must be 0..7, got {priority}")
-    if not 0 <= pgn < (1 << 18):
-        raise ValueError(f"pgn must be an 18-bit number, got {pgn}")
-    if not 0 <= source_address <= 0xFF:
-        raise ValueError(f"source_address must be 0..255, got {source_address}")
-    pdu_format = (pgn >> 8) & 0xFF
-    if pdu_format < 240:
-        if destination is None:
-            raise ValueError(f"PGN {pgn} is PDU1: a destination address is required")
-        pgn = (pgn & 0x3FF00) | (destination & 0xFF)
-    elif destination is not None:
-        raise ValueError(f"PGN {pgn} is PDU2 (broadcast): no destination address")
-    return (priority << 26) | (pgn << 8) | source_address
-
-
-def j1939_pgn(frame_id: int) -> int:
-    """The PGN carried by a 29-bit identifier (destination address removed for PDU1)."""
-    pgn = (frame_id >> 8) & 0x3FFFF
-    if ((pgn >> 8) & 0xFF) < 240:
-        pgn &= 0x3FF00
-    return pgn
-
-
-class FertilizerDatabase:
+class FertilizerDatabase(BusDatabase):
     """The rig's CAN database with typed encoders and a decoder.
 
     Parameters
@@ -147,16 +101,8 @@ class FertilizerDatabase:
     """
 
     def __init__(self, dbc_path: str | Path | None = None) -> None:
-        path = Path(dbc_path) if dbc_path is not None else DEFAULT_DBC
-        db, fast = _load(path)
-        self.path = path
-        self.db = db
-        self._by_pgn: dict[int, Message] = {
-            j1939_pgn(m.frame_id): m for m in db.messages if m.protocol == "j1939"}
-        #: frame name → compiled encoder (frames whose layout :mod:`hil.rig.fastcodec` covers)
-        self._fast: dict[str, _FastFrame] = fast
-        #: (id, extended) → (message, compiled frame or None): the lookup :meth:`decode` did
-        self._decode_memo: dict[tuple[int, bool], tuple[Message, _FastFrame | None]] = {}
+        super().__init__(Path(dbc_path) if dbc_path is not None else DEFAULT_DBC,
+                         padding="j1939")
 
     @classmethod
     def from_config(cls, config: FertilizerRigConfig) -> FertilizerDatabase:
@@ -198,141 +144,6 @@ class FertilizerDatabase:
                             source_address=w.tractor_ecu_address)),
         ]
         return ids
-
-    # ------------------------------------------------------------------ generic
-    def message(self, name: str) -> Message:
-        """The cantools message called ``name``."""
-        try:
-            return self.db.get_message_by_name(name)
-        except KeyError:
-            known = ", ".join(sorted(m.name for m in self.db.messages))
-            raise FrameError(f"unknown frame {name!r} (known: {known})") from None
-
-    def frame_id(self, name: str) -> int:
-        """Identifier of frame ``name`` (29 bits for extended frames)."""
-        return self.message(name).frame_id
-
-    def encode(self, name: str, signals: Mapping[str, SignalValue], *,
-               strict: bool = True) -> can.Message:
-        """Encode frame ``name``.
-
-        Parameters
-        ----------
-        name : str
-            Frame (message) name in the DBC.
-        signals : mapping
-            Physical values by signal name. Signals with a DBC start value may be omitted.
-        strict : bool, optional
-            If True (default), values outside a signal's declared [min, max] are an error.
-            With False they are encoded as long as the raw field can hold them (fault
-            injection: a module reporting garbage).
-
-        Returns
-        -------
-        can.Message
-            With id, extended flag and DLC from the DBC. J1939 frames pad unused bits with 1s.
-
-        Raises
-        ------
-        FrameError
-            Unknown frame, unknown or missing signal, a value out of range, or a value the
-            raw field cannot hold; the message names the frame and the signal.
-        """
-        fast = self._fast.get(name)
-        if fast is not None:
-            frame = fast.encode(signals, strict)
-            if frame is not None:
-                return frame
-        return self._encode_cantools(name, signals, strict=strict)
-
-    def _encode_cantools(self, name: str, signals: Mapping[str, SignalValue], *,
-                         strict: bool) -> can.Message:
-        """:meth:`encode` through cantools: every check, every error message."""
-        msg = self.message(name)
-        known = {s.name: s for s in msg.signals}
-        unknown = sorted(set(signals) - set(known))
-        if unknown:
-            raise FrameError(f"{name}: unknown signal {unknown[0]!r} "
-                             f"(signals: {', '.join(known)})")
-        values: dict[str, SignalValue] = {}
-        for sig_name, sig in known.items():
-            if sig_name in signals:
-                value = signals[sig_name]
-            elif sig.raw_initial is not None:
-                value = sig.conversion.raw_to_scaled(sig.raw_initial, decode_choices=False)
-            else:
-                raise FrameError(f"{name}: missing signal {sig_name!r}")
-            if not isinstance(value, int | float):
-                raise FrameError(f"{name}.{sig_name}: expected a number, got {value!r}")
-            if isinstance(value, float) and not math.isfinite(value):
-                raise FrameError(f"{name}.{sig_name}: value {value!r} is not finite")
-            self._check_range(name, sig, value, strict=strict)
-            values[sig_name] = value
-        try:
-            data = msg.encode(values, strict=strict, padding=msg.protocol == "j1939")
-        except (CantoolsError, ValueError, OverflowError) as exc:
-            raise FrameError(f"{name}: {exc}") from exc
-        return can.Message(arbitration_id=msg.frame_id, is_extended_id=msg.is_extended_frame,
-                           data=data, dlc=msg.length)
-
-    @staticmethod
-    def _check_range(name: str, sig: Signal, value: SignalValue, *, strict: bool) -> None:
-        if strict:
-            lo, hi = sig.minimum, sig.maximum
-            if (lo is not None and value < lo) or (hi is not None and value > hi):
-                raise FrameError(f"{name}.{_label(sig)}: value {value!r} is outside "
-                                 f"[{lo}, {hi}]")
-        raw = (value - sig.offset) / sig.scale
-        bits = sig.length
-        raw_lo, raw_hi = (-(1 << (bits - 1)), (1 << (bits - 1)) - 1) if sig.is_signed \
-            else (0, (1 << bits) - 1)
-        if not raw_lo - 0.5 <= raw <= raw_hi + 0.5:
-            raise FrameError(f"{name}.{_label(sig)}: value {value!r} does not fit the "
-                             f"{bits}-bit raw field")
-
-    def decode(self, msg: can.Message) -> tuple[str, dict[str, SignalValue]]:
-        """Decode a received frame.
-
-        Returns
-        -------
-        tuple
-            ``(frame name, {signal: physical value})``; value tables are returned as their
-            integers.
-
-        Raises
-        ------
-        FrameError
-            The id is not in the database, or the data cannot be decoded.
-        """
-        key = (msg.arbitration_id, bool(msg.is_extended_id))
-        entry = self._decode_memo.get(key)
-        if entry is None:
-            message = self._lookup(msg)
-            entry = self._decode_memo[key] = (message, self._fast.get(message.name))
-        message, fast = entry
-        if fast is not None:
-            values = fast.decode(msg.data)
-            if values is not None:
-                return message.name, values
-        try:
-            values = message.decode(bytes(msg.data), decode_choices=False)
-        except (CantoolsError, ValueError) as exc:
-            raise FrameError(f"{message.name}: cannot decode {bytes(msg.data).hex()}: {exc}") \
-                from exc
-        return message.name, dict(values)  # type: ignore[arg-type]
-
-    def _lookup(self, msg: can.Message) -> Message:
-        """The message a received frame is: ISO 11783 frames by PGN, others by id."""
-        frame_id = msg.arbitration_id
-        try:
-            if msg.is_extended_id:
-                return self._by_pgn.get(j1939_pgn(frame_id)) \
-                    or self.db.get_message_by_frame_id(frame_id, force_extended_id=True)
-            return self.db.get_message_by_frame_id(frame_id)
-        except KeyError:
-            kind = "extended" if msg.is_extended_id else "standard"
-            raise FrameError(f"no frame with {kind} id {frame_id:#x} in {self.path.name}") \
-                from None
 
     # ------------------------------------------------------------------ frame helpers
     def flow_module(self, row: int, report: FlowReport) -> can.Message:
@@ -435,98 +246,139 @@ class FertilizerDatabase:
         return self.encode("SYNC", {})
 
 
-_INF = math.inf
-
-def _load(path: Path) -> tuple[Any, dict[str, _FastFrame]]:
-    """The parsed database at ``path`` and its compiled frames (cached while unchanged)."""
-    return load_compiled(path, _FastFrame.build)
-
-
-class _FastFrame:
-    """One frame's :meth:`FertilizerDatabase.encode` and ``decode`` on its compiled layout.
-
-    Both return ``None`` (the caller then runs cantools) for anything but plain finite numbers
-    that pass the same checks as the cantools path: unknown, missing or non-numeric signals,
-    values outside [min, max] (strict) or outside the raw field, short payloads.
-    """
-
-    __slots__ = ("decode_specs", "dlc", "frame_id", "is_extended", "length", "names",
-                 "padding", "specs")
-
-    def __init__(self, message: Message, layout: FrameLayout) -> None:
-        self.frame_id = message.frame_id
-        self.is_extended = message.is_extended_frame
-        self.dlc = message.length
-        self.length = layout.length
-        self.names = frozenset(s.name for s in layout.signals)
-        # encode pads unused bits (with the message's unused-bit pattern) on J1939 frames only
-        self.padding = layout.padding if message.protocol == "j1939" else 0
-        specs = []
-        for lay in layout.signals:
-            sig = message.get_signal_by_name(lay.name)
-            default = (sig.conversion.raw_to_scaled(sig.raw_initial, decode_choices=False)
-                       if sig.raw_initial is not None else None)
-            specs.append((lay.name, default,
-                          -_INF if lay.minimum is None else lay.minimum,
-                          _INF if lay.maximum is None else lay.maximum,
-                          lay.kind, lay.scale, lay.offset, lay.raw_min, lay.raw_max,
-                          lay.mask, lay.shift))
-        self.specs = tuple(specs)
-        by_name = {lay.name: lay for lay in layout.signals}
-        self.decode_specs = tuple(
-            (name, by_name[name].shift, by_name[name].mask,
-             by_name[name].raw_max if by_name[name].signed else -1,
-             by_name[name].kind == KIND_IDENTITY, by_name[name].scale, by_name[name].offset)
-            for name in layout.decode_order)
-
-    @classmethod
-    def build(cls, message: Message) -> _FastFrame | None:
-        layout = FrameLayout.build(message)
-        if layout is None or any(s.kind not in (KIND_IDENTITY, KIND_LINEAR)
-                                 for s in layout.signals):
-            return None
-        return cls(message, layout)
-
-    def encode(self, signals: Mapping[str, SignalValue], strict: bool) -> can.Message | None:
-        if not self.names.issuperset(signals):
-            return None
-        x = self.padding
-        for (name, default, lo, hi, kind, scale, offset, raw_lo, raw_hi, mask,
-             shift) in self.specs:
-            value = signals.get(name, default)
-            cls = value.__class__
-            if cls is float:
-                if not -_INF < value < _INF:
-                    return None
-            elif cls is not int and cls is not bool:
-                return None                   # missing, or not a plain number
-            if strict and (value < lo or value > hi):
-                return None
-            raw = round(value) if kind == KIND_IDENTITY else round((value - offset) / scale)
-            if raw < raw_lo or raw > raw_hi:
-                return None
-            x |= (raw & mask) << shift
-        return can.Message(arbitration_id=self.frame_id, is_extended_id=self.is_extended,
-                           data=x.to_bytes(self.length, "little"), dlc=self.dlc)
-
-    def decode(self, data: bytes | bytearray) -> dict[str, SignalValue] | None:
-        length = self.length
-        if len(data) < length:
-            return None                       # cantools raises: the caller's path reports it
-        x = int.from_bytes(data[:length], "little")
-        out: dict[str, SignalValue] = {}
-        for name, shift, mask, signed_max, identity, scale, offset in self.decode_specs:
-            raw = (x >> shift) & mask
-            if signed_max >= 0 and raw > signed_max:
-                raw -= mask + 1
-            out[name] = raw if identity else raw * scale + offset
-        return out
-
-
-def _label(sig: Signal) -> str:
-    """``Name`` or ``Name [unit]`` of a cantools signal, for error messages."""
-    return f"{sig.name} [{sig.unit}]" if sig.unit else sig.name
-
-
 def _clip_low(value: float, low: float) -> float:
     return value if value > low else low
+
+
+# ------------------------------------------------------------------ the rig's bus contract
+_FLOW_MODES = {0: "field_rate", 1: "bench_flow", 2: "constant_speed"}
+_SPEED_SOURCES = {0: "hall_ground_wheel", 1: "wheel_based", 2: "ground_based"}
+_DIRECTIONS = {0: "reverse", 1: "forward", 2: "error", 3: "not_available"}
+_NMT_STATES = {0: "boot_up", 4: "stopped", 5: "operational", 127: "pre_operational"}
+_PID_SEGMENTS = {0: "none", 1: "fine", 2: "medium", 3: "coarse"}
+
+
+def _q(name: str, unit: str, direction: str, lo: float, hi: float, res: float, text: str,
+       **kw: Any) -> Quantity:
+    return Quantity(name, unit, direction, lo, hi, res, text, **kw)  # type: ignore[arg-type]
+
+
+QUANTITIES: tuple[Quantity, ...] = (
+    # the terminal's set-points (FertSetpoint in the rig's DBC)
+    _q("target_rate", "kg/hm2", "to_dut", 0, 1000, 0.1,
+       "field target application rate M of [F] eq. (1)"),
+    _q("working_width", "m", "to_dut", 0, 30, 0.001, "field working width D of [F] eq. (1)"),
+    _q("target_flow", "g/s", "to_dut", 0, 250, 0.01,
+       "bench target flow per row (and the flow a constant-speed run is calibrated for)",
+       required=True),
+    _q("mode", "", "to_dut", 0, 3, 1, "what the controller does", kind="enum",
+       values=_FLOW_MODES, required=True),
+    _q("enable", "", "to_dut", 0, 1, 1, "the terminal enables metering (0: command 0 V)",
+       kind="flag", required=True),
+    _q("speed_source", "", "to_dut", 0, 3, 1, "the ground speed a field run uses",
+       kind="enum", values=_SPEED_SOURCES),
+    _q("active_rows", "rows", "to_dut", 1, 7, 1, "rows sharing the total target flow"),
+    _q("setpoint_counter", "", "to_dut", 0, 255, 1, "rolling counter of the set-points",
+       kind="counter"),
+    # each row's flow detection module (FlowModule<row>)
+    _q("row_flow", "g/s", "to_dut", 0, 250, 0.01,
+       "the row's sensed flow: mean over the module's window", per_row=True, required=True,
+       event_driven=True),
+    _q("row_window_mass", "g", "to_dut", 0, 250, 0.01, "grams that passed during the window",
+       per_row=True, event_driven=True),
+    _q("row_counter", "", "to_dut", 0, 255, 1, "the module's rolling report counter",
+       per_row=True, kind="counter", event_driven=True),
+    _q("row_baseline_ready", "", "to_dut", 0, 1, 1,
+       "the empty-pipe baseline is acquired: values are valid", per_row=True, kind="flag",
+       event_driven=True),
+    _q("row_sliding_window", "", "to_dut", 0, 1, 1, "the window slides (10 Hz reports)",
+       per_row=True, kind="flag", event_driven=True),
+    _q("row_adc_overrange", "", "to_dut", 0, 1, 1,
+       "a conversion in the window was out of the AD7746's range", per_row=True, kind="flag",
+       event_driven=True),
+    _q("row_intercept_applied", "", "to_dut", 0, 1, 1,
+       "the calibration intercept was added to the window", per_row=True, kind="flag",
+       event_driven=True),
+    _q("row_window_length", "ms", "to_dut", 0, 10000, 1,
+       "length of the window the values cover", per_row=True, event_driven=True),
+    # the Hall ground-wheel node (GroundWheelSpeed)
+    _q("wheel_speed", "m/s", "to_dut", 0, 20, 0.001,
+       "ground-wheel surface speed (includes its slip)"),
+    _q("wheel_pulse_count", "pulses", "to_dut", 0, 65535, 1, "pulses since power-up",
+       kind="counter"),
+    _q("wheel_pulse_period", "s", "to_dut", 0, 6.5535, 0.0001, "time between the last pulses"),
+    _q("wheel_counter", "", "to_dut", 0, 255, 1, "rolling counter of the node's frames",
+       kind="counter"),
+    _q("wheel_moving", "", "to_dut", 0, 1, 1, "a pulse came within the last second",
+       kind="flag"),
+    # the tractor ECU (ISO 11783-7 PGN 65096 / 65097)
+    _q("wheel_based_speed", "m/s", "to_dut", 0, 64.255, 0.001,
+       "tractor wheel-based speed (PGN 65096; includes drive-wheel slip)"),
+    _q("wheel_based_distance", "m", "to_dut", 0, 4211081.215, 0.001,
+       "tractor wheel-based distance (PGN 65096)"),
+    _q("wheel_based_direction", "", "to_dut", 0, 3, 1, "machine direction (PGN 65096)",
+       kind="enum", values=_DIRECTIONS),
+    _q("ground_based_speed", "m/s", "to_dut", 0, 64.255, 0.001,
+       "tractor ground-based (radar) speed (PGN 65097)"),
+    _q("ground_based_distance", "m", "to_dut", 0, 4211081.215, 0.001,
+       "tractor ground-based distance (PGN 65097)"),
+    _q("ground_based_direction", "", "to_dut", 0, 3, 1, "machine direction (PGN 65097)",
+       kind="enum", values=_DIRECTIONS),
+    # what the DUT sends
+    _q("motor_command", "mV", "from_dut", 0, 10000, 1,
+       "the motor's speed command on the analog output module's channel (its RPDO1, "
+       "0x6411): 0-10 V = 0-3000 rpm", required=True),
+    _q("dut_nmt_state", "", "from_dut", 0, 127, 1,
+       "the DUT's CANopen heartbeat (0x700 + node id), consumed by the analog module",
+       kind="enum", values=_NMT_STATES),
+    _q("dut_target_flow", "g/s", "from_dut", 0, 250, 0.01,
+       "status: the per-row target the DUT holds (recorded, never judged)"),
+    _q("dut_measured_flow", "g/s", "from_dut", 0, 250, 0.01,
+       "status: the per-row flow the DUT believes"),
+    _q("dut_command_voltage", "V", "from_dut", 0, 10, 0.001,
+       "status: the command the DUT wrote"),
+    _q("dut_pid_segment", "", "from_dut", 0, 3, 1, "status: piecewise PID segment",
+       kind="enum", values=_PID_SEGMENTS),
+    _q("dut_mode", "", "from_dut", 0, 3, 1, "status: the mode the DUT executes", kind="enum",
+       values=_FLOW_MODES),
+    _q("dut_enabled", "", "from_dut", 0, 1, 1, "status: metering enabled", kind="flag"),
+    _q("dut_sensor_fault", "", "from_dut", 0, 1, 1,
+       "status: the DUT detected a stale, silent or implausible flow module", kind="flag"),
+    _q("dut_status_counter", "", "from_dut", 0, 255, 1, "status: rolling counter",
+       kind="counter"),
+)
+"""Every quantity the fertilizer rig's devices publish to the DUT or take from it."""
+
+
+def bus_contract(config: FertilizerRigConfig | None = None) -> Contract:
+    """The fertilizer rig's bus contract under ``config`` (default: the packaged one).
+
+    The binding in force is ``wiring.binding_file`` (the rig's default binding of its own DBC
+    unless a DUT profile binds its database).
+    """
+    cfg = config or load_rig_config()
+    w = cfg.wiring
+    analog = w.analog_output_node_id
+    node_ids = {"NMT": 0x000, "SYNC": 0x080,
+                "analog output module heartbeat": 0x700 + analog,
+                "analog output module EMCY": 0x080 + analog,
+                "analog output module SDO answer": 0x580 + analog,
+                "analog output module SDO request": 0x600 + analog,
+                "ground wheel node heartbeat": 0x700 + w.ground_speed_node_id,
+                **{f"flow module {i + 1} heartbeat": 0x700 + node
+                   for i, node in enumerate(w.flow_module_node_ids)}}
+    sensor = cfg.flow_sensor
+    return Contract(
+        rig="fertilizer", quantities=QUANTITIES, rows=cfg.meter.rows,
+        binding_file=Path(w.binding_file), default_binding_file=DEFAULT_BINDING,
+        dut_node="Controller",
+        canopen_nodes=(CanopenNode("analog output module", analog,
+                                   Path(w.analog_output_eds_file)),),
+        bitrate_bps=w.bitrate_bps, command_ids=frozenset({0x200 + analog}),
+        node_ids=node_ids,
+        periods_ms={"target_flow": float(w.setpoint_period_ms),
+                    "wheel_speed": float(w.ground_speed_period_ms),
+                    "wheel_based_speed": float(w.tractor_speed_period_ms),
+                    "row_flow": sensor.report_period_s * 1000.0},
+        dispersion_file=Path(__file__).with_name("dispersion.toml"),
+        control_period_ms=100.0)

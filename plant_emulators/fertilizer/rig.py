@@ -10,6 +10,9 @@ from typing import Any, ClassVar
 
 import can
 
+from hil.contract.binding import load_binding
+from hil.contract.codec import ContractCodec
+from hil.contract.quantity import Contract
 from hil.errors import ConfigError
 from hil.rig import Rig, RigContext
 from hil.rig.device import Heartbeat
@@ -23,7 +26,7 @@ from plant_emulators.fertilizer.devices import (
     TractorSpeedDevice,
 )
 from plant_emulators.fertilizer.flow_sensor import REPORT_FAULTS, FlowSensor
-from plant_emulators.fertilizer.frames import FertilizerDatabase
+from plant_emulators.fertilizer.frames import FertilizerDatabase, bus_contract
 from plant_emulators.fertilizer.ground_speed import GroundSpeedModel
 from plant_emulators.fertilizer.physics import FertilizerPlant
 
@@ -66,12 +69,31 @@ class FertilizerRig(Rig):
                     source: str = "") -> FertilizerRigConfig:
         return load_rig_config(overrides=overrides, source=source)
 
+    @classmethod
+    def bus_contract(cls, overrides: Mapping[str, Any] | None = None,
+                     source: str = "") -> Contract:
+        """The rig's bus contract (quantities, binding in force, nodes) under ``overrides``."""
+        return bus_contract(load_rig_config(overrides=overrides, source=source))
+
+    @staticmethod
+    def contract_codec(config: FertilizerRigConfig) -> ContractCodec:
+        """The codec of the binding in force under ``config``.
+
+        The rig's own DBC is first checked against the wiring (its ids follow the node ids);
+        a DUT's database is bound as it is (``hil profile check`` judges it).
+        """
+        contract = bus_contract(config)
+        binding = load_binding(contract.binding_file)
+        if binding.database == Path(config.wiring.dbc_file):
+            return ContractCodec(contract, binding, FertilizerDatabase.from_config(config))
+        return ContractCodec(contract, binding)
+
     def __init__(self, ctx: RigContext, config: FertilizerRigConfig | None = None) -> None:
         super().__init__(ctx)
         cfg = config or load_rig_config(overrides=ctx.config_overrides,
                                         source=ctx.config_source)
         self.config = cfg
-        self.db = FertilizerDatabase.from_config(cfg)
+        self.codec = self.contract_codec(cfg)
         wiring = cfg.wiring
         rows = cfg.meter.rows
         self.rows = rows
@@ -83,13 +105,14 @@ class FertilizerRig(Rig):
                                          str(wiring.analog_output_eds_file),
                                          AnalogOutputChannel(cfg.analog_output, ctx.rng),
                                          wiring.analog_output_channel)
-        self.flow_modules = [FlowModuleDevice(row + 1, sensor, self.db)
+        valid_max = self.codec.contract.quantity("row_flow").maximum
+        self.flow_modules = [FlowModuleDevice(row + 1, sensor, self.codec, valid_max)
                              for row, sensor in enumerate(self.sensors)]
-        self.terminal = TerminalDevice(self.db, wiring.setpoint_period_ms / 1000.0, rows)
+        self.terminal = TerminalDevice(self.codec, wiring.setpoint_period_ms / 1000.0, rows)
         self.devices = [
             *self.flow_modules,
-            GroundWheelDevice(self.speed, self.db, wiring.ground_speed_period_ms / 1000.0),
-            TractorSpeedDevice(self.speed, self.db, wiring.tractor_speed_period_ms / 1000.0),
+            GroundWheelDevice(self.speed, self.codec, wiring.ground_speed_period_ms / 1000.0),
+            TractorSpeedDevice(self.speed, self.codec, wiring.tractor_speed_period_ms / 1000.0),
             self.terminal,
             self.analog,
             *(Heartbeat(f"flow module {i + 1}", node) for i, node in
@@ -97,6 +120,7 @@ class FertilizerRig(Rig):
             Heartbeat("ground wheel speed", wiring.ground_speed_node_id),
         ]
         self.dut_node_id = wiring.dut_node_id
+        self._command_ids = self.command_ids()
         self.controller_silent = False
         self.time_s = 0.0
         self.target_mass_g = 0.0          # per row, integral of the target flow while enabled
@@ -195,15 +219,17 @@ class FertilizerRig(Rig):
 
     # --- frames from the controller ---------------------------------------------------------
     def command_ids(self) -> frozenset[int]:
-        return frozenset({self.db.frame_id("AnalogOutputCommand")})
+        return frozenset({self.codec.frame_id("motor_command")})
 
     def admits(self, msg: can.Message) -> bool:
         return not self.controller_silent
 
     def on_dut_frame(self, msg: can.Message, time_s: float) -> None:
-        if msg.arbitration_id == self.db.frame_id("ControllerStatus"):
-            _, signals = self.db.decode(msg)
-            self.dut_status = {k: float(v) for k, v in signals.items()}
+        if msg.arbitration_id in self._command_ids:
+            return
+        values = self.codec.decode(msg)
+        if values and "dut_target_flow" in values:
+            self.dut_status = {k: float(v) for k, v in values.items()}
 
     def watch(self, time_s: float) -> None:
         """Note when the controller's heartbeat (consumed by the analog module) stops and
