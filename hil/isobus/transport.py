@@ -17,9 +17,9 @@ Timeouts (ISO 11783-3, clause 5.12.3; the same as SAE J1939-21):
 - T3 = 1,250 ms: a sender waiting for a CTS or the end-of-message acknowledgement after its
   last data packet.
 - T4 = 1,050 ms: a sender held by a CTS for 0 packets, waiting for the next CTS.
-- A BAM's data packets go 50 ms apart (SAE J1939-21: 50 to 200 ms). ISO 11783-3 lets a sender
-  go as fast as 10 ms between BAM packets; the 50 ms of J1939-21 suits both, and
-  :attr:`TransportTiming.bam_interval_s` changes it.
+- A BAM's data packets go 50 ms apart (SAE J1939-21: 50 to 200 ms; whether ISO 11783-3 allows
+  a shorter gap could not be checked against its text here). The receiver of a BAM times out
+  after T1. :attr:`TransportTiming.bam_interval_s` changes the gap.
 
 A receiver that times out sends an abort with reason 3 (a BAM receiver drops the message
 silently, BAM has no aborts); a sender that times out does the same.
@@ -170,7 +170,7 @@ class Session:
     pgn, source, destination, size, priority : int
         The message being carried.
     data : bytearray
-        The payload (sender: all of it; receiver: what has arrived, padded to whole packets).
+        The payload (sender: all of it; receiver: the packets that have arrived).
     """
 
     role: str
@@ -444,8 +444,10 @@ class TransportLayer:
         if (protocol == "BAM") != (destination == GLOBAL_ADDRESS):
             return   # a BAM to one address or an RTS to everyone: not a valid connection
         size = cm.size
+        # the buffer grows as packets arrive (in order, or the session is aborted): an RTS
+        # announcing 117 MB costs nothing until the data comes
         s = Session("receiver", protocol, cm.pgn, source, destination, size, priority,
-                    bytearray(packets_for(max(size, 1)) * BYTES_PER_PACKET))
+                    bytearray())
         if protocol == "ETP":
             bad = not TP_MAX_BYTES < size <= ETP_MAX_BYTES
         else:
@@ -538,8 +540,7 @@ class TransportLayer:
                 self._abort(s, AbortReason.BAD_SEQUENCE, now,
                             detail=f"packet {number}, expected {s.next_packet}")
                 return
-        start = (number - 1) * BYTES_PER_PACKET
-        s.data[start:start + BYTES_PER_PACKET] = chunk.ljust(BYTES_PER_PACKET, b"\xff")
+        s.data += chunk.ljust(BYTES_PER_PACKET, b"\xff")
         s.next_packet += 1
         s.packets_done += 1
         reason = self.hooks.abort_reason(s, s.packets_done)
