@@ -1,0 +1,425 @@
+"""The Task Controller server (ISO 11783-10, version 4): TC-BAS process data with set-points.
+
+The server runs on an :class:`~hil.isobus.port.IsobusPort` and keeps its own timers through
+:meth:`TaskControllerServer.tick`. What a client sees:
+
+- the TC status (process data command 0xE) every 2 s, broadcast;
+- on its working-set master message, a new session and a request for its version; the
+  version message (v4 and the options, booms, sections and channels the TC supports) on request;
+- the language command (PGN 0xFE0F) when it requests it;
+- structure and localization labels answered from a :class:`~hil.isobus.tc.store.PoolStore`,
+  so a client whose pool is known skips the transfer;
+- the object pool transfer (received whole through the port), parsed with the client's version,
+  validated with every rule of :mod:`hil.isobus.ddop.validate`, and activated or refused with the
+  error codes and the faulty object's id;
+- after activation: the measurement triggers of a :class:`~hil.isobus.tc.triggers.TriggerPlan`,
+  then set-points from a :data:`~hil.isobus.tc.setpoints.SetpointSource`;
+- every value it sends logged (:attr:`TaskControllerServer.values`), its process data
+  acknowledgements answered or recorded;
+- its session dropped after 6 s without its client task message or working-set master;
+- a negative acknowledgement (PGN 0xE800) for process data before its working-set master.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from hil.errors import FrameError
+from hil.isobus import process_data as pd
+from hil.isobus.ddop import (
+    ActivationError,
+    DdopError,
+    ObjectPool,
+    PoolError,
+    ProcessData,
+    ProcessDataProperty,
+)
+from hil.isobus.port import GLOBAL_ADDRESS, IsobusPort, Received
+from hil.isobus.process_data import AckError, Command, ElementCommand
+from hil.isobus.tc.records import Event, EventKind, LoggedValue, ReceivedAcknowledge
+from hil.isobus.tc.setpoints import SetpointRequest, SetpointSource, no_setpoints
+from hil.isobus.tc.store import ClientKey, PoolStore
+from hil.isobus.tc.triggers import TriggerPlan
+
+ACKNOWLEDGEMENT_PGN = 0xE800
+REQUEST_PGN = 0xEA00
+LANGUAGE_COMMAND_PGN = 0xFE0F
+
+STATUS_PERIOD_S = 2.0
+"""The TC status period (ISO 11783-10)."""
+CLIENT_TIMEOUT_S = 6.0
+"""A client silent this long (no client task, no working-set master) is dropped."""
+
+PRIORITY_STATUS = 3
+PRIORITY_ACK = 4
+PRIORITY_DEFAULT = 5
+
+DEFAULT_LANGUAGE_COMMAND = b"en" + bytes([0x40, 0x00, 0x00, 0x00, 0xFF, 0xFF])
+"""English, decimal point, 24 h, metric units."""
+
+
+@dataclass
+class ClientSession:
+    """The TC's state of one connected client (volatile: lost on a restart)."""
+
+    address: int
+    key: ClientKey
+    name: int | None
+    connected_s: float
+    last_seen_s: float
+    version: int | None = None
+    transfer: bytearray = field(default_factory=bytearray)
+    announced_size: int | None = None
+    pool: ObjectPool | None = None
+    pool_raw: bytes = b""
+    triggers_due: bool = False
+    task_active: bool = False
+    sent_setpoints: dict[tuple[int, int], tuple[int, float]] = field(default_factory=dict)
+
+    @property
+    def active(self) -> bool:
+        """Whether the client's pool is active (process data flows)."""
+        return self.pool is not None
+
+
+@dataclass(frozen=True)
+class ServerOptions:
+    """What the TC reports in its version message.
+
+    Attributes
+    ----------
+    version : int
+        ISO 11783-10 version: 4 (second edition).
+    options : int
+        :class:`~hil.isobus.process_data.VersionOption` bits; TC-BAS documentation by default.
+    booms, sections, channels : int
+        Most booms, sections and position-based control channels the TC supports.
+    memory_bytes : int
+        The largest pool the TC accepts (request object pool transfer answers "not enough
+        memory" beyond it).
+    """
+
+    version: int = 4
+    options: int = int(pd.VersionOption.DOCUMENTATION)
+    booms: int = 1
+    sections: int = 16
+    channels: int = 1
+    memory_bytes: int = 1 << 20
+
+
+class TaskControllerServer:
+    """A Task Controller on an ISOBUS port.
+
+    Parameters
+    ----------
+    port : IsobusPort
+        The network seam: the TC's claimed address, send, subscribe, NAME look-up.
+    options : ServerOptions
+        Version, capabilities, memory.
+    store : PoolStore, optional
+        Stored pools; pass the same store to a restarted server (its non-volatile memory).
+    setpoints : SetpointSource
+        Set-point values per element and DDI.
+    triggers : TriggerPlan
+        The measurement commands sent after activation.
+    setpoint_refresh_s : float or None
+        Re-send an unchanged set-point this often (``None``: only on change).
+    language_command : bytes
+        The 8-byte language command payload sent on request.
+    """
+
+    def __init__(self, port: IsobusPort, *, options: ServerOptions | None = None,
+                 store: PoolStore | None = None, setpoints: SetpointSource = no_setpoints,
+                 triggers: TriggerPlan | None = None, setpoint_refresh_s: float | None = None,
+                 language_command: bytes = DEFAULT_LANGUAGE_COMMAND) -> None:
+        if len(language_command) != 8:
+            raise ValueError(f"language command payload is {len(language_command)} bytes, not 8")
+        self.port = port
+        self.options = options or ServerOptions()
+        self.store = store if store is not None else PoolStore()
+        self.setpoints = setpoints
+        self.triggers = triggers or TriggerPlan()
+        self.setpoint_refresh_s = setpoint_refresh_s
+        self.language_command = language_command
+        self.sessions: dict[int, ClientSession] = {}
+        self.values: list[LoggedValue] = []
+        self.acknowledgements: list[ReceivedAcknowledge] = []
+        self.events: list[Event] = []
+        self.status = pd.ServerStatus.NONE
+        self._next_status_s: float | None = None
+        self._down_until_s: float | None = None
+        self._now_s = 0.0
+        port.subscribe(pd.PROCESS_DATA_PGN, self._on_process_data)
+        port.subscribe(pd.WORKING_SET_MASTER_PGN, self._on_working_set_master)
+        port.subscribe(REQUEST_PGN, self._on_request)
+
+    # --- timers -----------------------------------------------------------------------------
+
+    def tick(self, now_s: float) -> None:
+        """Advance to ``now_s``: status when due, timeouts, triggers and set-points."""
+        self._now_s = now_s
+        if self._down(now_s) or self.port.address is None:
+            return
+        if self._next_status_s is None or now_s >= self._next_status_s:
+            self._send(pd.TaskControllerStatus(self.status), GLOBAL_ADDRESS, PRIORITY_STATUS)
+            if self._next_status_s is None:
+                self._next_status_s = now_s
+            while self._next_status_s <= now_s:
+                self._next_status_s += STATUS_PERIOD_S
+        for address, session in list(self.sessions.items()):
+            if now_s - session.last_seen_s >= CLIENT_TIMEOUT_S:
+                del self.sessions[address]
+                self._event(now_s, address, EventKind.TIMED_OUT,
+                            f"no client task or working-set master for "
+                            f"{now_s - session.last_seen_s:.1f} s")
+                continue
+            if session.pool is not None:
+                self._send_triggers(session)
+                self._send_setpoints(session, now_s)
+
+    def restart(self, now_s: float, *, down_s: float = 0.0) -> None:
+        """Restart the TC at ``now_s``: sessions are lost, stored pools kept.
+
+        For ``down_s`` seconds the TC is silent and deaf (a reboot); then it sends its status
+        again and every client must reconnect from its working-set master message.
+        """
+        self.sessions.clear()
+        self.status = pd.ServerStatus.NONE
+        self._next_status_s = None
+        self._down_until_s = now_s + down_s
+        self._event(now_s, None, EventKind.SERVER_RESTARTED, f"down for {down_s:g} s")
+
+    def _down(self, now_s: float) -> bool:
+        return self._down_until_s is not None and now_s < self._down_until_s
+
+    # --- sending ------------------------------------------------------------------------------
+
+    def _send(self, message: pd.ProcessDataMessage, destination: int,
+              priority: int = PRIORITY_DEFAULT) -> None:
+        self.port.send(pd.PROCESS_DATA_PGN, pd.encode(message), destination, priority)
+
+    def _event(self, time_s: float, address: int | None, kind: EventKind, detail: str = "",
+               ) -> None:
+        self.events.append(Event(time_s, address, kind, detail))
+
+    def _nack(self, address: int) -> None:
+        pgn = pd.PROCESS_DATA_PGN
+        payload = bytes([0x01, 0xFF, 0xFF, 0xFF, address, pgn & 0xFF, (pgn >> 8) & 0xFF,
+                         pgn >> 16])
+        self.port.send(ACKNOWLEDGEMENT_PGN, payload, GLOBAL_ADDRESS, PRIORITY_DEFAULT)
+
+    def _send_triggers(self, session: ClientSession) -> None:
+        if not session.triggers_due or session.pool is None:
+            return
+        session.triggers_due = False
+        for command in self.triggers.commands(session.pool):
+            self._send(command, session.address)
+
+    def _send_setpoints(self, session: ClientSession, now_s: float) -> None:
+        pool = session.pool
+        if pool is None:
+            return
+        for element in pool.elements:
+            for child in pool.children(element):
+                if not isinstance(child, ProcessData) or not (
+                        child.properties & ProcessDataProperty.SETTABLE):
+                    continue
+                key = (element.element_number, child.ddi)
+                value = self.setpoints(SetpointRequest(session.address, session.name,
+                                                       element.element_number, child.ddi, now_s))
+                if value is None:
+                    continue
+                last = session.sent_setpoints.get(key)
+                refresh = self.setpoint_refresh_s
+                if last is not None and last[0] == value and (
+                        refresh is None or now_s - last[1] < refresh):
+                    continue
+                session.sent_setpoints[key] = (value, now_s)
+                self._send(ElementCommand(Command.VALUE, element.element_number, child.ddi,
+                                          value), session.address)
+
+    # --- receiving ----------------------------------------------------------------------------
+
+    def _key(self, address: int) -> tuple[ClientKey, int | None]:
+        name = self.port.name_of(address)
+        return (name if name is not None else ("address", address)), name
+
+    def _on_working_set_master(self, msg: Received) -> None:
+        if self._down(msg.time_s):
+            return
+        try:
+            pd.decode_working_set_master(msg.data)
+        except FrameError as exc:
+            self._event(msg.time_s, msg.source, EventKind.REJECTED_MESSAGE, str(exc))
+            return
+        session = self.sessions.get(msg.source)
+        if session is not None:
+            session.last_seen_s = msg.time_s
+            return
+        key, name = self._key(msg.source)
+        self.sessions[msg.source] = ClientSession(msg.source, key, name, msg.time_s, msg.time_s)
+        self._event(msg.time_s, msg.source, EventKind.CONNECTED,
+                    f"NAME {name:016X}" if name is not None else "NAME unknown")
+        self._send(pd.RequestVersion(), msg.source)
+
+    def _on_request(self, msg: Received) -> None:
+        if self._down(msg.time_s) or len(msg.data) < 3:
+            return
+        if int.from_bytes(msg.data[:3], "little") == LANGUAGE_COMMAND_PGN:
+            self.port.send(LANGUAGE_COMMAND_PGN, self.language_command, GLOBAL_ADDRESS,
+                           PRIORITY_DEFAULT)
+
+    def _on_process_data(self, msg: Received) -> None:
+        if self._down(msg.time_s):
+            return
+        try:
+            message = pd.decode(msg.data)
+        except FrameError as exc:
+            self._event(msg.time_s, msg.source, EventKind.REJECTED_MESSAGE, str(exc))
+            return
+        session = self.sessions.get(msg.source)
+        if session is None:
+            if not isinstance(message, pd.ClientTask | pd.TaskControllerStatus):
+                self._event(msg.time_s, msg.source, EventKind.REJECTED_MESSAGE,
+                            f"{type(message).__name__} before a working-set master message")
+                self._nack(msg.source)
+            return
+        self._handle(session, message, msg)
+
+    def _handle(self, session: ClientSession, message: pd.ProcessDataMessage,
+                msg: Received) -> None:
+        t = msg.time_s
+        match message:
+            case pd.ClientTask():
+                session.last_seen_s = t
+                session.task_active = message.task_active
+            case pd.RequestVersion():
+                self._send(pd.Version(self.options.version, self.options.options,
+                                      self.options.booms, self.options.sections,
+                                      self.options.channels), session.address)
+                if session.version is None:
+                    self._send(pd.RequestVersion(), session.address)
+            case pd.Version():
+                session.version = message.version
+                self._event(t, session.address, EventKind.VERSION,
+                            f"version {message.version}, options 0x{message.options:02X}")
+            case pd.RequestStructureLabel():
+                if message.label == pd.LABEL_NONE:
+                    stored = self.store.latest(session.key)
+                else:
+                    stored = self.store.by_structure(session.key, message.label,
+                                                     message.extended)
+                self._send(pd.StructureLabel(stored.structure_label,
+                                             stored.extended_structure_label)
+                           if stored else pd.StructureLabel(), session.address)
+            case pd.RequestLocalizationLabel():
+                if message.label == pd.LABEL_NONE:
+                    stored = self.store.latest(session.key)
+                else:
+                    stored = self.store.by_localization(session.key, message.label)
+                self._send(pd.LocalizationLabel(stored.localization_label) if stored
+                           else pd.LocalizationLabel(), session.address)
+            case pd.RequestObjectPoolTransfer():
+                enough = message.size <= self.options.memory_bytes
+                if enough:
+                    session.announced_size = message.size
+                    session.transfer.clear()
+                self._send(pd.RequestObjectPoolTransferResponse(enough), session.address)
+            case pd.ObjectPoolTransfer():
+                if len(session.transfer) + len(message.pool) > self.options.memory_bytes:
+                    self._send(pd.ObjectPoolTransferResponse(0x01, len(message.pool)),
+                               session.address)
+                    return
+                session.transfer += message.pool
+                self._event(t, session.address, EventKind.POOL_TRANSFERRED,
+                            f"{len(message.pool)} bytes ({len(session.transfer)} in all)")
+                self._send(pd.ObjectPoolTransferResponse(0, len(message.pool)), session.address)
+            case pd.ObjectPoolActivate(activate=True):
+                self._activate(session, t)
+            case pd.ObjectPoolActivate(activate=False):
+                session.pool = None
+                session.sent_setpoints.clear()
+                self._event(t, session.address, EventKind.DEACTIVATED)
+                self._send(pd.ObjectPoolActivateResponse(0), session.address)
+            case pd.DeleteObjectPool():
+                self.store.delete(session.key)
+                session.transfer.clear()
+                self._event(t, session.address, EventKind.DELETED)
+                self._send(pd.DeleteObjectPoolResponse(True), session.address)
+            case ElementCommand(command=Command.VALUE | Command.SET_VALUE_AND_ACKNOWLEDGE):
+                self._on_value(session, message, t)
+            case ElementCommand():
+                # Request value and measurement commands are the TC's to send, not a client's.
+                self._send(pd.ProcessDataAcknowledge(message.element, message.ddi,
+                                                     AckError.COMMAND_NOT_SUPPORTED,
+                                                     message.command),
+                           session.address, PRIORITY_ACK)
+            case pd.ProcessDataAcknowledge():
+                self.acknowledgements.append(ReceivedAcknowledge(
+                    t, session.address, message.element, message.ddi, int(message.errors),
+                    message.command))
+            case _:
+                self._event(t, session.address, EventKind.REJECTED_MESSAGE,
+                            f"{type(message).__name__} is not a client's message")
+
+    def _on_value(self, session: ClientSession, message: ElementCommand, t: float) -> None:
+        errors = AckError.NONE
+        pool = session.pool
+        if pool is None:
+            errors = AckError.COMMAND_NOT_SUPPORTED
+        elif pool.element(message.element) is None:
+            errors = AckError.INVALID_ELEMENT_NUMBER
+        elif pool.process_data(message.element, message.ddi) is None:
+            errors = AckError.DDI_NOT_SUPPORTED_BY_ELEMENT
+        if not errors:
+            self.values.append(LoggedValue(t, session.address, message.element, message.ddi,
+                                           message.value))
+        if errors or message.command == Command.SET_VALUE_AND_ACKNOWLEDGE:
+            self._send(pd.ProcessDataAcknowledge(message.element, message.ddi, errors,
+                                                 message.command), session.address, PRIORITY_ACK)
+
+    def _activate(self, session: ClientSession, t: float) -> None:
+        raw = bytes(session.transfer)
+        version = session.version if session.version is not None else self.options.version
+        version = min(version, self.options.version)
+        try:
+            if raw:
+                pool = ObjectPool.from_bytes(raw, version=version)
+            else:
+                stored = self.store.latest(session.key)
+                if stored is None:
+                    raise DdopError(
+                        "no pool was transferred and none is stored for this client",
+                        object_id=None, activation_error=ActivationError.ANY_OTHER_ERROR,
+                        pool_error=PoolError.NONE)
+                pool, raw = stored.pool, stored.raw
+            device = pool.device
+            if session.name is not None and device.name != session.name:
+                raise DdopError(f"the device object's NAME {device.name:016X} is not the "
+                                f"client's {session.name:016X}", object_id=device.object_id)
+            same_label = self.store.by_structure(session.key, device.structure_label,
+                                                 device.extended_structure_label)
+            if same_label is not None and same_label.raw != raw:
+                raise DdopError(
+                    "a different pool with the same structure label is stored; change the "
+                    "structure label or delete the stored pool", object_id=device.object_id,
+                    activation_error=ActivationError.DIFFERENT_DDOP_SAME_STRUCTURE_LABEL,
+                    pool_error=PoolError.NONE)
+        except DdopError as err:
+            self._event(t, session.address, EventKind.REFUSED, str(err))
+            self._send(pd.ObjectPoolActivateResponse(
+                int(err.activation_error),
+                err.parent_id if err.parent_id is not None else 0xFFFF,
+                err.object_id if err.object_id is not None else 0xFFFF,
+                int(err.pool_error)), session.address)
+            return
+        session.pool = pool
+        session.pool_raw = raw
+        session.transfer.clear()
+        session.triggers_due = True
+        session.sent_setpoints.clear()
+        self.store.put(session.key, pool, raw)
+        self._event(t, session.address, EventKind.ACTIVATED,
+                    f"{len(pool.objects)} objects, {len(raw)} bytes, version {pool.version}")
+        self._send(pd.ObjectPoolActivateResponse(0), session.address)
+
