@@ -132,3 +132,17 @@ def test_builder_numbers_ids_and_elements_in_call_order() -> None:
     assert pool.element(1) == DeviceElement(2, 2, b"B", 1, 1, (3,))
     assert pool.process_data(1, 6) == ProcessData(3, 6, 0x03, 0x08, b"", 0xFFFF)
     assert serialise_pool(pool.objects) == pool.to_bytes()
+
+
+def test_an_element_with_more_than_255_children_keeps_its_16_bit_count() -> None:
+    b = PoolBuilder()
+    dvc = b.device("D", software_version="1", name=NAME)
+    dev = b.element(ElementType.DEVICE, "D", parent=dvc)
+    for i in range(300):
+        b.property(dev, ddi=134, value=i)
+    pool = b.build()
+    data = pool.to_bytes()
+    again = parse_pool(data)
+    assert again == pool.objects
+    element = next(o for o in again if isinstance(o, DeviceElement))
+    assert len(element.children) == 300
