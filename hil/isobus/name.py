@@ -63,7 +63,8 @@ class IsobusName:
     function : int
         Function code, 8 bits (0-127 global; 128-255 depend on industry group and device class).
     device_class : int
-        Device class, 7 bits (1: tractor, 4: planters/seeders, 6: fertilizers in group 2).
+        Device class, 7 bits (group 2: 0 non-specific, 1 tractor, 4 planters/seeders,
+        5 fertilizers, 6 sprayers).
     device_class_instance : int
         Which of several devices of one class, 4 bits.
     industry_group : int
