@@ -12,7 +12,10 @@ from dataclasses import dataclass
 @dataclass(frozen=True)
 class MeasurementSpec:
     """A measurement of the catalogue. ``low``/``high``: the limit it gets from the rig's
-    physics when a profile sets none (a profile's own limit replaces it)."""
+    physics when a profile sets none (a profile's own limit replaces it). ``default_rule``: the
+    default limit in words where it depends on the run, so the code that records the
+    measurement sets it (the bus conformance checks, hil/conformance/measure.py); it is what
+    the catalogue page prints."""
 
     name: str
     unit: str
@@ -20,6 +23,7 @@ class MeasurementSpec:
     description: str
     low: float | None = None
     high: float | None = None
+    default_rule: str = ""
 
 
 #: flow.field.transient_lag, from the rig's physics. The delays a controller cannot avoid
@@ -154,27 +158,41 @@ _SPECS = (
                     "99th percentile of the rig's period lateness (real time only)"),
     # bus conformance of the DUT, every run (hil/conformance; docs/guide/bus-conformance.md)
     MeasurementSpec("bus.undeclared_frames", "frames", "*",
-                    "frames of the DUT that its databases do not declare for its node"),
+                    "frames of the DUT that its databases do not declare for its node",
+                    default_rule="<= 0"),
     MeasurementSpec("bus.dlc_errors", "frames", "*",
-                    "frames of one message whose data length differs from the database's"),
+                    "frames of one message whose data length differs from the database's",
+                    default_rule="<= 0, per message"),
     MeasurementSpec("bus.cycle_time.median", "%", "*",
-                    "median interval of a cyclic message, off its declared cycle time"),
+                    "median interval of a cyclic message, off its declared cycle time",
+                    default_rule=">= -10, <= 10 (% of the declared cycle), per message"),
     MeasurementSpec("bus.cycle_time.outside_band", "%", "*",
-                    "share of a cyclic message's intervals outside the cycle-time band"),
+                    "share of a cyclic message's intervals outside the cycle-time band",
+                    default_rule="<= 5 in lockstep, per message; none in real time"),
     MeasurementSpec("bus.heartbeat.period", "%", "*",
-                    "median heartbeat interval, off timing.heartbeat_period_ms"),
+                    "median heartbeat interval, off timing.heartbeat_period_ms",
+                    default_rule=">= -10, <= 10 (% of timing.heartbeat_period_ms)"),
     MeasurementSpec("bus.heartbeat.max_interval", "ms", "*",
-                    "longest heartbeat interval, against a rig node's consumer time (0x1016)"),
+                    "longest heartbeat interval, against a rig node's consumer time (0x1016)",
+                    default_rule="<= the consuming rig node's heartbeat consumer time, object "
+                                 "0x1016 of its EDS (the fertilizer rig's analog output module: "
+                                 "300 ms)"),
     MeasurementSpec("bus.bootup.frames_before", "frames", "*",
-                    "frames of the DUT before its first boot-up message"),
+                    "frames of the DUT before its first boot-up message",
+                    default_rule="<= 0; none for a physical ECU (it may have booted before "
+                                 "the rig listened)"),
     MeasurementSpec("bus.bootup.unexpected", "frames", "*",
-                    "boot-up messages more or fewer than one per power-up"),
+                    "boot-up messages more or fewer than one per power-up",
+                    default_rule="<= 0"),
     MeasurementSpec("bus.share", "%", "*",
-                    "the DUT's bits per second (exact, stuffing included) / the bit rate"),
+                    "the DUT's bits per second (exact, stuffing included) / the bit rate",
+                    default_rule="<= 10"),
     MeasurementSpec("bus.sync_latency.p50", "ms", "*",
                     "median time from SYNC to the DUT's command frame (real time only)"),
     MeasurementSpec("bus.sync_latency.p99", "ms", "*",
-                    "99th percentile of the SYNC-to-command time (real time only)"),
+                    "99th percentile of the SYNC-to-command time (real time only)",
+                    default_rule="<= control period + 10 % + the time-stamp resolution (one "
+                                 "physics step); none on a bus loaded with other traffic"),
     MeasurementSpec("bus.sync_latency.max", "ms", "*",
                     "longest SYNC-to-command time (real time only)"),
 )
@@ -193,6 +211,17 @@ def known_measurement(name: str, rig: str) -> bool:
 
 def unit_of(name: str) -> str:
     return MEASUREMENTS[name].unit
+
+
+def default_limit_text(name: str) -> str:
+    """The limit a qualification judges ``name`` against when the DUT's profile sets none, in
+    words: ``default_rule``, else ``low``/``high``, else "none (information)"."""
+    spec = MEASUREMENTS[name]
+    if spec.default_rule:
+        return spec.default_rule
+    parts = [f">= {spec.low:g}"] if spec.low is not None else []
+    parts += [f"<= {spec.high:g}"] if spec.high is not None else []
+    return ", ".join(parts) or "none (information)"
 
 
 def default_limit(name: str) -> tuple[float | None, float | None]:

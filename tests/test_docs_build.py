@@ -34,3 +34,24 @@ def test_docs_build_without_warnings(tmp_path: Path) -> None:
     for module in SUBCOMMANDS:
         command = module.rsplit(".", 1)[-1]
         assert command in headings, f"the CLI reference lacks `hil {command}`: {headings}"
+
+
+def test_catalogue_states_the_bus_defaults_the_checks_apply() -> None:
+    """The catalogue's words for the bus checks' default limits are the numbers the checks use
+    (issue 31.4: the page must say what will fail)."""
+    from hil.conformance import measure
+    from hil.limits import MEASUREMENTS, default_limit_text
+
+    cycle, heartbeat = measure.CYCLE_TOLERANCE_PCT, measure.HEARTBEAT_TOLERANCE_PCT
+    assert default_limit_text("bus.share") == f"<= {measure.BUS_SHARE_PCT:g}"
+    assert default_limit_text("bus.cycle_time.median").startswith(
+        f">= -{cycle:g}, <= {cycle:g} ")
+    assert default_limit_text("bus.heartbeat.period").startswith(
+        f">= -{heartbeat:g}, <= {heartbeat:g} ")
+    assert default_limit_text("bus.cycle_time.outside_band").startswith(
+        f"<= {measure.OUTSIDE_BAND_PCT:g} in lockstep")
+    assert f"+ {cycle:g} %" in default_limit_text("bus.sync_latency.p99")
+    # a limit in numbers and one in words would be two definitions
+    both = [n for n, s in MEASUREMENTS.items()
+            if s.default_rule and (s.low is not None or s.high is not None)]
+    assert not both, f"a default limit both in numbers and in words: {both}"

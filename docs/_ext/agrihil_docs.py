@@ -1,8 +1,10 @@
 """Sphinx directives that generate reference tables from the code, so the pages cannot drift.
 
 ``measurement-catalogue``
-    Every measurement of ``hil/limits.py`` for one rig (``:rig:``): name, unit, definition and the
-    limit the rig's reference profile sets (the limits a new profile usually starts from).
+    Every measurement of ``hil/limits.py`` for one rig (``:rig:``): name, unit, definition, the
+    default limit a qualification judges it against when the DUT's profile sets none
+    (``hil.limits.default_limit_text``), and the limit the rig's reference profile sets (the
+    limits a new profile usually starts from).
 ``pytest-plugin-options``
     The ``--hil-*`` options of the pytest plugin, read from its ``pytest_addoption``.
 """
@@ -41,7 +43,7 @@ def _table(header: list[str], rows: list[list[str]]) -> list[str]:
 
 def _limit_text(limit: Any) -> str:
     if limit is None:
-        return "none (information)"
+        return "not set: the default applies"
     parts = []
     if limit.low is not None:
         parts.append(f">= {limit.low:g}")
@@ -49,7 +51,7 @@ def _limit_text(limit: Any) -> str:
         parts.append(f"<= {limit.high:g}")
     if getattr(limit, "marginal", None) is not None:
         parts.append(f"(marginal band {limit.marginal:g})")
-    return " ".join(parts) or "none (information)"
+    return " ".join(parts) or "not set: the default applies"
 
 
 class _Generated(SphinxDirective):
@@ -67,16 +69,18 @@ class MeasurementCatalogue(_Generated):
 
     def run(self) -> list[nodes.Node]:
         from hil.dut.profile import load_profile
-        from hil.limits import MEASUREMENTS
+        from hil.limits import MEASUREMENTS, default_limit_text
 
         rig = self.options["rig"]
         profile_path = ROOT / REFERENCE_PROFILES[rig]
         self.env.note_dependency(str(profile_path))
         self.env.note_dependency(str(ROOT / "hil" / "limits.py"))
         profile = load_profile(profile_path)
-        rows = [[f"`{spec.name}`", spec.unit, spec.description, _limit_text(profile.limit(name))]
+        rows = [[f"`{spec.name}`", spec.unit, spec.description, default_limit_text(name),
+                 _limit_text(profile.limit(name))]
                 for name, spec in MEASUREMENTS.items() if spec.rig in (rig, "*")]
         return self._emit(_table(["measurement", "unit", "definition",
+                                  "default limit (the profile sets none)",
                                   f"limit in {profile_path.name}"], rows))
 
 
