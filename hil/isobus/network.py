@@ -229,7 +229,7 @@ class IsobusNetwork(Device):
         return self._app_due.get(id(app), self._now)
 
     def _advance(self, now: float) -> None:
-        self._now = max(self._now, now)
+        now = self._now = max(self._now, now)      # run time never goes back
         if not self._started and now >= self.start_s:
             self._started = True
             for cf in self.functions:

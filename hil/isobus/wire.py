@@ -89,25 +89,27 @@ class VirtualWire:
 
 def drive(device: Device, bus: can.BusABC, duration_s: float,
           clock: Callable[[], float] = time.monotonic,
-          until: Callable[[], bool] | None = None) -> float:
+          until: Callable[[], bool] | None = None, start_s: float = 0.0) -> float:
     """Run ``device`` on ``bus`` in real time for ``duration_s`` (or until ``until()``).
 
-    The run time is ``clock()`` minus its value at the start. Frames are handed to the device
-    as they arrive; the device's frames are sent when :meth:`Device.next_due` says.
+    The run time is ``start_s`` plus the ``clock()`` time since the call. Frames are handed to
+    the device as they arrive; the device's frames are sent when :meth:`Device.next_due` says.
+    To go on with a run, pass the time the last call returned as ``start_s``.
 
     Returns
     -------
     float
         The run time reached.
     """
-    t0 = clock()
-    now = last = 0.0
-    while now < duration_s and not (until is not None and until()):
+    t0 = clock() - start_s
+    now = last = start_s
+    end = start_s + duration_s
+    while now < end and not (until is not None and until()):
         if device.next_due(last) <= now:
             for frame in device.emit(now):
                 bus.send(frame)
             last = now
-        wait = min(device.next_due(last), duration_s) - now
+        wait = min(device.next_due(last), end) - now
         msg = bus.recv(timeout=min(max(wait, 0.0), 0.005))
         now = clock() - t0
         if msg is not None and device.accepts(msg):
