@@ -13,7 +13,10 @@ than overlaps), 100 % keeps a section on while any of it is on fresh ground (ove
 than skips), and 50 % (the default) switches where the section's centre crosses, within
 ``probe_m / 2``. An off section is switched on when it will be wanted ``turn_on_s`` from now,
 an on section off when it will not be wanted ``turn_off_s`` from now (the implement's declared
-look-ahead times, :class:`~.boom.Boom`): the command then takes effect where it should.
+look-ahead times, :class:`~.boom.Boom`): the command then takes effect where it should. A
+switch is never judged at a time before the previous command of that section takes effect
+(with a turn-on time longer than the turn-off time, an "off" checked right after an "on" would
+look at ground the section has not reached, and flap).
 
 The probe is ahead of the line, so a section's own swath (which ends at its line) never counts
 as covered for it. The future pose comes from a callable: the field path where the rig drives
@@ -177,6 +180,7 @@ class SectionControl:
         self.probe_m = probe_m
         self.coverage = Coverage(boom)
         self.states: tuple[bool, ...] = (False,) * len(boom.sections)
+        self._effect = [-math.inf] * len(boom.sections)
 
     def probes(self, pose: PoseLike) -> list[Polygon]:
         """Each section's probe at ``pose``."""
@@ -205,14 +209,23 @@ class SectionControl:
 
         ``pose_at(t)`` gives the antenna's pose at a future time ``t``.
         """
+        wanted: dict[float, np.ndarray] = {}
+
+        def wanted_at(t: float) -> np.ndarray:
+            if t not in wanted:
+                wanted[t] = self.wanted(pose_at(t))
+            return wanted[t]
+
         states = list(self.states)
-        if not all(states):
-            on_ahead = self.wanted(pose_at(t_s + self.boom.turn_on_s))
-            states = [was or bool(on_ahead[j]) for j, was in enumerate(states)]
-        if any(self.states):
-            off_ahead = self.wanted(pose_at(t_s + self.boom.turn_off_s))
-            states = [bool(off_ahead[j]) if was else states[j]
-                      for j, was in enumerate(self.states)]
+        for j, was in enumerate(self.states):
+            # a switch is judged where it would take effect, but never before the previous
+            # command has: an off right after an on (turn-on time > turn-off time) would
+            # otherwise look at ground the section has not reached yet, and flap
+            lag = self.boom.turn_off_s if was else self.boom.turn_on_s
+            check = max(t_s + lag, self._effect[j])
+            if bool(wanted_at(check)[j]) != was:
+                states[j] = not was
+                self._effect[j] = t_s + lag
         self.states = tuple(states)
         return self.states
 

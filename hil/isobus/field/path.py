@@ -309,8 +309,10 @@ def field_from_geojson(data: Any, frame: LocalFrame, *, source: str = "<memory>"
                  FieldPath(legs), source)
 
 
-def load_field(path: str | Path, frame: LocalFrame) -> Field:
+def load_field(path: str | Path, frame: LocalFrame | None = None) -> Field:
     """Read a field file (GeoJSON) into ``frame`` (share it with the prescription map).
+
+    Without a frame, the field's own is used: centred on the boundary's bounding box.
 
     Raises
     ------
@@ -325,7 +327,23 @@ def load_field(path: str | Path, frame: LocalFrame) -> Field:
     except json.JSONDecodeError as exc:
         raise ConfigError(f"not JSON: {exc.msg} at line {exc.lineno} column {exc.colno}",
                           path=source) from None
+    if frame is None:
+        frame = _frame_of(data, source)
     return field_from_geojson(data, frame, source=source)
+
+
+def _frame_of(data: Any, source: str) -> LocalFrame:
+    """The frame centred on the bounding box of the file's boundary feature."""
+    for i, feature in enumerate(data.get("features", []) if isinstance(data, Mapping) else []):
+        if (isinstance(feature, Mapping) and isinstance(feature.get("properties"), Mapping)
+                and feature["properties"].get("role") == "boundary"):
+            try:
+                coords = shapely.get_coordinates(shape(feature["geometry"]))
+                return LocalFrame.centred_on(coords[:, 0], coords[:, 1])
+            except (KeyError, ValueError, TypeError, AttributeError, IndexError) as exc:
+                raise ConfigError(f"malformed boundary: {exc}", path=source,
+                                  key=f"features[{i}].geometry") from None
+    raise ConfigError("no feature with role 'boundary'", path=source, key="features")
 
 
 def _lonlat(geom: Any, frame: LocalFrame) -> Any:
