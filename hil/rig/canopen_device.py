@@ -7,6 +7,11 @@ canopen's wall-clock threads so it works in lockstep:
 * heartbeats at the period in 0x1017 (canopen would start a ``send_periodic`` thread);
 * TPDOs on SYNC (transmission types 1-240, every n-th SYNC) and on their event timer (254/255);
 * received RPDOs written into the object dictionary (``set_data``, so write callbacks fire);
+* the master's configuration by SDO (:mod:`hil.rig.canopen_config`): PDO communication and
+  mapping parameters, SYNC and EMCY COB-IDs, heartbeat producer and consumer times are checked
+  against the EDS and CiA 301 before they are stored (a refusal is an SDO abort with its code)
+  and take effect once stored: new COB-IDs, mappings, transmission types, event timers,
+  inhibit times, heartbeat period and SYNC COB-ID;
 * the error state of CiA 301 (:mod:`hil.rig.canopen_errors`): 0x1001 error register, 0x1003
   pre-defined error field (if the EDS declares it), EMCY on COB-ID 0x1014 when an error occurs
   and the error-reset EMCY (code 0x0000) when it goes away, spaced by the inhibit time 0x1015
@@ -31,12 +36,20 @@ import can
 import canopen
 from canopen.pdo.base import PdoMap
 
+from hil.rig.canopen_config import CommunicationGuard, ConfigRefused
 from hil.rig.canopen_errors import ABORT_NO_DATA, ABORT_VALUE_RANGE, ErrorState, emcy_payload
 from hil.rig.device import Device
 
 NMT_STATES = {"INITIALISING": 0x00, "STOPPED": 0x04, "OPERATIONAL": 0x05,
               "PRE-OPERATIONAL": 0x7F}
 SYNC_ID = 0x080
+
+#: objects whose writes change how the node communicates (re-read once an SDO write is stored)
+_COMMUNICATION_OBJECTS = (0x1005, 0x1014, 0x1016, 0x1017)
+
+
+def _is_communication(index: int) -> bool:
+    return index in _COMMUNICATION_OBJECTS or 0x1400 <= index <= 0x1BFF
 
 
 #: a PDO map's variables as (variable, index, subindex, first byte, end byte); first byte -1:
@@ -111,9 +124,19 @@ class CanopenDevice(Device):
         self.autostart = autostart
         self._booted = False
         self._sync_count = 0
+        #: per event-driven TPDO (map number): when it is due next, and its event timer (ms)
         self._event_due: dict[int, float] = {}
+        self._event_ms: dict[int, int] = {}
         self._heartbeat_due = 0.0
         self._pending_sync_rpdos: list[tuple[PdoMap, bytes]] = []
+        #: per event-driven TPDO (map number): when it last went out (its inhibit time)
+        self._tpdo_sent_s: dict[int, float] = {}
+        #: per acyclic synchronous TPDO (type 0): the data it last sent
+        self._tpdo_last_data: dict[int, bytes] = {}
+        #: configuration writes the node refused, newest last (each a ConfigRefused)
+        self.refused: list[ConfigRefused] = []
+        self._config_written = False
+        self._in_rpdo = False
         #: RPDO values the device refused (no SDO to abort on the PDO path): (index, sub, why)
         self.rejected: list[tuple[int, int, str]] = []
         #: per PDO map: (its variable list, its length, byte plan or None); see _byte_plan
@@ -130,6 +153,10 @@ class CanopenDevice(Device):
         self._emcy_last_s = -math.inf
         self.node.add_read_callback(self._on_error_object_read)
         self.node.add_write_callback(self._on_error_object_write)
+        self.guard = CommunicationGuard(od, lambda index, sub: int(self.read(index, sub)))
+        self.node.add_write_callback(self._on_configuration_write)
+        self._sync_id = self._read_sync_id()
+        self._heartbeat_ms = self._read_heartbeat_ms()
 
     # --- object dictionary helpers -------------------------------------------------------
     def read(self, index: int, subindex: int = 0) -> Any:
@@ -255,6 +282,88 @@ class CanopenDevice(Device):
             m.cob_id: m for m in self.node.rpdo.map.values() if m.enabled and m.cob_id}
         self._tpdos = [m for m in self.node.tpdo.map.values() if m.enabled and m.cob_id]
 
+    # --- configuration by the master (CiA 301) -------------------------------------------
+    def _on_configuration_write(self, index: int, subindex: int, od: Any, data: bytes) -> None:
+        """Check an SDO write before it is stored; a refusal aborts it with its code."""
+        if self._in_rpdo:
+            return                          # RPDO data: mapped objects only, no SDO to abort
+        value = od.decode_raw(data)
+        try:
+            self.guard.check(index, subindex, value)
+        except ConfigRefused as exc:
+            self.refused.append(exc)
+            raise
+        if _is_communication(index):
+            self._config_written = True
+
+    def _com_value(self, index: int, subindex: int) -> int | None:
+        """A communication parameter's value now, or None if the EDS does not declare it."""
+        od = self.node.object_dictionary
+        if index not in od:
+            return None
+        obj = od[index]
+        if not isinstance(obj, canopen.objectdictionary.ODVariable) and subindex not in obj:
+            return None
+        return int(self.read(index, subindex))
+
+    def _read_sync_id(self) -> int:
+        value = self._com_value(0x1005, 0)
+        return SYNC_ID if value is None else value & 0x7FF
+
+    def _read_heartbeat_ms(self) -> int:
+        return self._com_value(0x1017, 0) or 0
+
+    def _event_timers_ms(self) -> dict[int, int]:
+        """Event timer (ms) of every valid event-driven TPDO (type 254/255) that has one."""
+        timers: dict[int, int] = {}
+        for key, tpdo in self.node.tpdo.map.items():
+            if tpdo in self._tpdos and (tpdo.trans_type or 0) >= 254:
+                ms = self._com_value(0x1800 + key - 1, 5) or 0
+                if ms > 0:
+                    timers[key] = ms
+        return timers
+
+    def _inhibit_s(self, key: int) -> float:
+        """A TPDO's inhibit time (0x18xx:03, multiples of 100 µs) in seconds."""
+        return (self._com_value(0x1800 + key - 1, 3) or 0) * 100e-6
+
+    def _apply_configuration(self, time_s: float) -> None:
+        """What the master wrote takes effect: PDOs, SYNC COB-ID, heartbeat, event timers.
+
+        A changed heartbeat producer time restarts the heartbeat from now; a TPDO whose event
+        timer was set or changed goes out one period from now.
+        """
+        self._reload_pdos()
+        self._sync_id = self._read_sync_id()
+        heartbeat_ms = self._read_heartbeat_ms()
+        if heartbeat_ms != self._heartbeat_ms:
+            self._heartbeat_ms = heartbeat_ms
+            if self._booted:
+                self._heartbeat_due = (time_s + heartbeat_ms / 1000.0 if heartbeat_ms > 0
+                                       else math.inf)
+        timers = self._event_timers_ms()
+        for key in list(self._event_due):
+            if key not in timers:
+                del self._event_due[key]
+        for key, ms in timers.items():
+            if self._event_ms.get(key) != ms or key not in self._event_due:
+                self._event_due[key] = time_s + ms / 1000.0
+        self._event_ms = timers
+        self.configured(time_s)
+
+    def configured(self, time_s: float) -> None:
+        """Hook: the master's configuration changed (or a reset restored the EDS defaults)."""
+        return None
+
+    def _restore_communication_defaults(self, time_s: float) -> None:
+        """NMT reset: the communication objects (0x1000-0x1FFF) go back to their EDS values."""
+        store = self.node.data_store
+        for index in [i for i in store if 0x1000 <= i <= 0x1FFF]:
+            del store[index]
+        self._tpdo_sent_s.clear()
+        self._tpdo_last_data.clear()
+        self._apply_configuration(time_s)
+
     # --- Device ----------------------------------------------------------------------------
     def next_due(self, time_s: float) -> float:
         """The earliest of the next heartbeat, event-timer TPDO and pending EMCY after ``time_s``.
@@ -270,17 +379,18 @@ class CanopenDevice(Device):
                 self._heartbeat_due += period
             candidates.append(self._heartbeat_due)
         for key, due in self._event_due.items():
-            while due <= time_s + 1e-9:
-                due += self._event_period(key)
-            self._event_due[key] = due
+            if due <= time_s + 1e-9:
+                # not sent yet (silent, or asked before emit): the next tick of its timer; the
+                # schedule itself moves only when the TPDO goes out (emit)
+                period = self._event_period(key)
+                due += (math.floor((time_s + 1e-9 - due) / period) + 1) * period
             candidates.append(due)
         if self._emcy_pending:
             candidates.append(max(self._emcy_last_s + self._emcy_inhibit_s(), time_s + 1e-6))
         return min(candidates)
 
     def _event_period(self, key: int) -> float:
-        tpdo = self.node.tpdo.map[key]
-        return max(1, tpdo.event_timer or 0) / 1000.0
+        return max(1, self._event_ms.get(key, 0)) / 1000.0
 
     def emit(self, time_s: float) -> list[can.Message]:
         """The frames due at ``time_s``: boot-up first, then EMCYs, the heartbeat and event TPDOs.
@@ -307,31 +417,40 @@ class CanopenDevice(Device):
         if self.operational:
             for key, due in self._event_due.items():
                 if due <= time_s + 1e-9:
+                    inhibit_end = self._tpdo_sent_s.get(key, -math.inf) + self._inhibit_s(key)
+                    if time_s + 1e-9 < inhibit_end:
+                        self._event_due[key] = inhibit_end       # within its inhibit time
+                        continue
                     out.append(self._tpdo_frame(self.node.tpdo.map[key]))
+                    self._tpdo_sent_s[key] = time_s
+                    self._event_due[key] = time_s + self._event_period(key)
         return out
 
     def accepts(self, msg: can.Message) -> bool:
         """Whether ``msg`` is for this node: NMT (0x000), SYNC, its SDO requests or its RPDOs."""
         can_id = msg.arbitration_id
-        return (not msg.is_extended_id and (can_id in (0x000, SYNC_ID, 0x600 + self.node_id)
+        return (not msg.is_extended_id and (can_id in (0x000, self._sync_id,
+                                                       0x600 + self.node_id)
                                             or can_id in self._rpdo_by_id))
 
     def on_frame(self, msg: can.Message, time_s: float) -> list[can.Message]:
         """Handle a frame for this node under the NMT state rules; return the replies.
 
-        SYNC sends the synchronous TPDOs (operational only); RPDOs are stored, synchronous ones at
-        the next SYNC; NMT commands change the state (a reset sends the boot-up message); SDO
-        requests are answered by canopen's SDO server, except in stopped.
+        SYNC (on the COB-ID in 0x1005) sends the synchronous TPDOs (operational only); RPDOs are
+        stored, synchronous ones (types 0-240) at the next SYNC; NMT commands change the state (a
+        reset sends the boot-up message); SDO requests are answered by canopen's SDO server,
+        except in stopped, and a configuration the master wrote takes effect once stored.
         """
         if self.silent:
             return []
         can_id, data = msg.arbitration_id, bytes(msg.data)
-        if can_id == SYNC_ID:
+        if can_id == self._sync_id:
             return self._on_sync(time_s) if self.operational else []
         if can_id in self._rpdo_by_id:
             if self.operational:
                 rpdo = self._rpdo_by_id[can_id]
-                if 1 <= (rpdo.trans_type or 255) <= 240:
+                trans_type = rpdo.trans_type
+                if trans_type is not None and trans_type <= 240:
                     # synchronous RPDO: actuated at the next SYNC (CiA 301)
                     self._pending_sync_rpdos.append((rpdo, data))
                 else:
@@ -345,22 +464,32 @@ class CanopenDevice(Device):
             return self._reset(time_s)
         if can_id == 0x000 and self.node.nmt.state != before:
             self._enter(self.node.nmt.state)
+        if self._config_written:
+            self._config_written = False
+            self._apply_configuration(time_s)
         return self.network.take() + self._take_emcy(time_s)
 
     def _reset(self, time_s: float) -> list[can.Message]:
         """NMT reset node or reset communication: the boot-up message, then pre-operational.
 
-        With autostart the node goes operational; the heartbeat restarts from now. The application
-        (a drive's state machine) is not reset.
+        With autostart the node goes operational; the heartbeat restarts from now. The
+        communication objects take their EDS values again (CiA 301: the master configures the
+        node anew after a reset); the application (a drive's state machine) is not reset.
         """
         self.network.take()
         self._pending_sync_rpdos.clear()
         self._sync_count = 0
+        self._restore_communication_defaults(time_s)
         self._enter("OPERATIONAL" if self.autostart else "PRE-OPERATIONAL")
         period = self.heartbeat_period_s()
         self._heartbeat_due = time_s + period if period > 0 else math.inf
         return [can.Message(arbitration_id=0x700 + self.node_id, data=b"\x00",
                             is_extended_id=False)]
+
+    def enter_state(self, state: str) -> None:
+        """Change the NMT state from the application (CiA 301 error behaviour, say)."""
+        if state != self.node.nmt.state:
+            self._enter(state)
 
     def _enter(self, state: str) -> None:
         self.node.nmt.state = state
@@ -368,10 +497,8 @@ class CanopenDevice(Device):
             self._pending_sync_rpdos.clear()      # no PDO is processed outside operational
         if state == "OPERATIONAL":
             self._reload_pdos()
-            self._event_due = {}
-            for key, tpdo in self.node.tpdo.map.items():
-                if tpdo in self._tpdos and (tpdo.trans_type or 0) >= 254 and tpdo.event_timer:
-                    self._event_due[key] = 0.0
+            self._event_ms = self._event_timers_ms()
+            self._event_due = dict.fromkeys(self._event_ms, 0.0)
 
     def _on_sync(self, time_s: float) -> list[can.Message]:
         self._sync_count += 1
@@ -384,6 +511,13 @@ class CanopenDevice(Device):
             n = tpdo.trans_type or 0
             if 1 <= n <= 240 and self._sync_count % n == 0:
                 out.append(self._tpdo_frame(tpdo))
+            elif n == 0:
+                # synchronous acyclic: at the SYNC after its data changed (the first SYNC too)
+                frame = self._tpdo_frame(tpdo)
+                key = tpdo.com_record.od.index
+                if self._tpdo_last_data.get(key) != bytes(frame.data):
+                    self._tpdo_last_data[key] = bytes(frame.data)
+                    out.append(frame)
         return out
 
     def events(self) -> list[can.Message]:
@@ -413,14 +547,18 @@ class CanopenDevice(Device):
     def _store_rpdo(self, rpdo: PdoMap, data: bytes) -> None:
         rpdo.data = bytearray(data.ljust(len(rpdo.data), b"\x00"))
         plan = self._byte_plan(rpdo)
-        for var, index, subindex, start, stop in plan or _bit_plan(rpdo):
-            # with a byte plan, canopen's byte-aligned branch of PdoVariable.get_data: a slice
-            # of the map buffer
-            value = var.get_data() if start < 0 else rpdo.data[start:stop]
-            try:
-                self.node.set_data(index, subindex, value)
-            except (canopen.SdoAbortedError, ValueError) as exc:
-                self.rejected.append((index, subindex, str(exc)))
+        self._in_rpdo = True
+        try:
+            for var, index, subindex, start, stop in plan or _bit_plan(rpdo):
+                # with a byte plan, canopen's byte-aligned branch of PdoVariable.get_data: a
+                # slice of the map buffer
+                value = var.get_data() if start < 0 else rpdo.data[start:stop]
+                try:
+                    self.node.set_data(index, subindex, value)
+                except (canopen.SdoAbortedError, ValueError) as exc:
+                    self.rejected.append((index, subindex, str(exc)))
+        finally:
+            self._in_rpdo = False
 
     def _byte_plan(self, pdo: PdoMap) -> _Plan | None:
         """The byte plan of a PDO map, or None if any variable is not whole bytes at a whole byte.

@@ -187,28 +187,47 @@ class AnalogOutputModule(CanopenDevice):
     than the consumer time, the outputs whose error mode (0x6443) is on go to their error value
     (0x6444), which is the motor's safe state, until the heartbeat returns. The timeout is
     error 0x8130 (error register bit 4, communication): an EMCY, an entry in 0x1003; the
-    heartbeat's return sends the error-reset EMCY."""
+    heartbeat's return sends the error-reset EMCY. A master may set another node or time in
+    0x1016 sub 1 (node 0 or time 0: no monitoring); monitoring of the new node starts at its
+    first heartbeat, and an active timeout of the old one ends (error-reset EMCY)."""
 
     def __init__(self, node_id: int, eds: str, channel: AnalogOutputChannel,
                  output_sub: int) -> None:
         super().__init__("analog output module", node_id, eds)
         self.channel = channel
         self.output_sub = output_sub
-        consumer = int(self.read(0x1016, 1))
-        self.watched_node = (consumer >> 16) & 0x7F
-        self.consumer_time_s = (consumer & 0xFFFF) / 1000.0
+        self.watched_node, self.consumer_time_s = self._consumer()
         self.last_watched_heartbeat_s = -math.inf
         self.heartbeat_seen = False
         self.comm_error = False
         self._volts: float | None = None
 
+    def _consumer(self) -> tuple[int, float]:
+        """The watched node and consumer time (s) of 0x1016 sub 1."""
+        consumer = int(self.read(0x1016, 1))
+        return (consumer >> 16) & 0x7F, (consumer & 0xFFFF) / 1000.0
+
+    def configured(self, time_s: float) -> None:
+        """0x1016 may have changed: monitor the new node from its first heartbeat."""
+        watched = self._consumer()
+        if watched == (self.watched_node, self.consumer_time_s):
+            return
+        self.watched_node, self.consumer_time_s = watched
+        self.heartbeat_seen = False
+        self.last_watched_heartbeat_s = -math.inf
+        self._volts = None
+        if self.comm_error:
+            self.comm_error = False
+            self.clear_error(HEARTBEAT_ERROR)
+
     def accepts(self, msg: can.Message) -> bool:
-        if msg.arbitration_id == 0x700 + self.watched_node and not msg.is_extended_id:
+        if (self.watched_node and msg.arbitration_id == 0x700 + self.watched_node
+                and not msg.is_extended_id):
             return True
         return super().accepts(msg)
 
     def on_frame(self, msg: can.Message, time_s: float) -> list[can.Message]:
-        if msg.arbitration_id == 0x700 + self.watched_node:
+        if self.watched_node and msg.arbitration_id == 0x700 + self.watched_node:
             self.last_watched_heartbeat_s = time_s
             self.heartbeat_seen = True
             return []
@@ -227,8 +246,18 @@ class AnalogOutputModule(CanopenDevice):
             # CiA 301: heartbeat consumer timeout is EMCY 0x8130, its end the error reset
             if error:
                 self.raise_error(HEARTBEAT_ERROR)
+                self._error_behaviour()
             else:
                 self.clear_error(HEARTBEAT_ERROR)
+
+    def _error_behaviour(self) -> None:
+        """0x1029 sub 1 on a communication error (CiA 301): 0 pre-operational (from
+        operational), 1 no change of state, 2 stopped."""
+        behaviour = int(self.read(0x1029, 1))
+        if behaviour == 0 and self.operational:
+            self.enter_state("PRE-OPERATIONAL")
+        elif behaviour == 2:
+            self.enter_state("STOPPED")
 
     def output_volts(self) -> float:
         """What the module drives onto the motor's speed input now."""
