@@ -350,7 +350,7 @@ def section_switching(distance_m: ArrayLike, applying: ArrayLike, needed: ArrayL
                     _, best = min(cand)
                     free.remove(best)
                     err = float(d[best, j]) - at
-                    late, early = max(err, 0.0), max(-err, 0.0)
+                    late, early = max(0.0, err), max(0.0, -err)
                     ov, sk = (early, late) if direction == "on" else (late, early)
                 else:
                     err = math.inf
