@@ -49,6 +49,8 @@ STATUS_PERIOD_S = 2.0
 """The TC status period (ISO 11783-10)."""
 CLIENT_TIMEOUT_S = 6.0
 """A client silent this long (no client task, no working-set master) is dropped."""
+MIN_STATUS_INTERVAL_S = 0.2
+"""A changed status goes out at once, but never sooner than this after the last one."""
 
 PRIORITY_STATUS = 3
 PRIORITY_ACK = 4
@@ -147,6 +149,8 @@ class TaskControllerServer:
         self.events: list[Event] = []
         self.status = pd.ServerStatus.NONE
         self._next_status_s: float | None = None
+        self._last_status_s: float | None = None
+        self._status_changed = False
         self._down_until_s: float | None = None
         self._now_s = 0.0
         port.subscribe(pd.PROCESS_DATA_PGN, self._on_process_data)
@@ -160,12 +164,13 @@ class TaskControllerServer:
         self._now_s = now_s
         if self._down(now_s) or self.port.address is None:
             return
-        if self._next_status_s is None or now_s >= self._next_status_s:
+        changed = self._status_changed and (
+            self._last_status_s is None or now_s - self._last_status_s >= MIN_STATUS_INTERVAL_S)
+        if changed or self._next_status_s is None or now_s >= self._next_status_s:
             self._send(pd.TaskControllerStatus(self.status), GLOBAL_ADDRESS, PRIORITY_STATUS)
-            if self._next_status_s is None:
-                self._next_status_s = now_s
-            while self._next_status_s <= now_s:
-                self._next_status_s += STATUS_PERIOD_S
+            self._status_changed = False
+            self._last_status_s = now_s
+            self._next_status_s = now_s + STATUS_PERIOD_S
         for address, session in list(self.sessions.items()):
             if now_s - session.last_seen_s >= CLIENT_TIMEOUT_S:
                 del self.sessions[address]
@@ -186,8 +191,19 @@ class TaskControllerServer:
         self.sessions.clear()
         self.status = pd.ServerStatus.NONE
         self._next_status_s = None
+        self._last_status_s = None
+        self._status_changed = False
         self._down_until_s = now_s + down_s
         self._event(now_s, None, EventKind.SERVER_RESTARTED, f"down for {down_s:g} s")
+
+    def set_task_active(self, active: bool) -> None:
+        """Start or stop the task: the status's task totals active bit, sent at the next tick
+        (at most every 0.2 s), then every 2 s again from there."""
+        status = self.status | pd.ServerStatus.TASK_TOTALS_ACTIVE if active else \
+            self.status & ~pd.ServerStatus.TASK_TOTALS_ACTIVE
+        if status != self.status:
+            self.status = pd.ServerStatus(status)
+            self._status_changed = True
 
     def _down(self, now_s: float) -> bool:
         return self._down_until_s is not None and now_s < self._down_until_s

@@ -4,7 +4,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from hil.isobus.ddop import ObjectPool, ProcessData, ProcessDataProperty, TriggerMethod
+from hil.isobus.ddi import REQUEST_DEFAULT_PROCESS_DATA
+from hil.isobus.ddop import (
+    ElementType,
+    ObjectPool,
+    ProcessData,
+    ProcessDataProperty,
+    TriggerMethod,
+)
 from hil.isobus.process_data import Command, ElementCommand
 
 
@@ -25,6 +32,10 @@ class TriggerPlan:
         Change threshold (command 8) for DPDs with the on change method.
     minimum_threshold, maximum_threshold : int or None
         Threshold commands 6 and 7 for DPDs with the threshold limits method.
+    request_default_process_data : bool
+        Also send a request value of DDI 0xDFFF to the device element, which asks the client
+        to start sending its default set (the DPDs with the default set property) as it
+        chooses.
     """
 
     time_interval_ms: int | None = 1000
@@ -32,6 +43,7 @@ class TriggerPlan:
     change_threshold: int | None = 1
     minimum_threshold: int | None = None
     maximum_threshold: int | None = None
+    request_default_process_data: bool = False
 
     def commands(self, pool: ObjectPool) -> list[ElementCommand]:
         """The measurement commands for ``pool``, element by element in pool order."""
@@ -49,6 +61,9 @@ class TriggerPlan:
              self.change_threshold),
         ]
         for element in pool.elements:
+            if self.request_default_process_data and element.element_type == ElementType.DEVICE:
+                out.append(ElementCommand(Command.REQUEST_VALUE, element.element_number,
+                                          REQUEST_DEFAULT_PROCESS_DATA))
             for child in pool.children(element):
                 if not isinstance(child, ProcessData):
                     continue

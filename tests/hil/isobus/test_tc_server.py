@@ -6,6 +6,8 @@ from collections import defaultdict
 from dataclasses import replace
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from hil.isobus import ddi
 from hil.isobus import process_data as pd
@@ -510,3 +512,85 @@ def test_trigger_plan_skips_settable_entities_and_missing_methods() -> None:
 def test_a_language_command_of_the_wrong_length_is_refused() -> None:
     with pytest.raises(ValueError, match="7 bytes, not 8"):
         TaskControllerServer(FakePort(), language_command=b"en12345")
+
+
+def test_starting_the_task_sends_the_status_at_once_then_every_two_seconds() -> None:
+    port = FakePort()
+    server = _server(port)
+    _run(server, port, 0.0, 1.0, client_task=False)
+    server.set_task_active(True)
+    sent = _run(server, port, 1.1, 6.0, client_task=False)
+    assert _statuses(sent) == [1.1, 3.1, 5.1]
+    assert sent[0][2][4] == pd.ServerStatus.TASK_TOTALS_ACTIVE
+    server.set_task_active(True)  # no change, no extra status
+    server.set_task_active(False)
+    sent = _run(server, port, 6.1, 6.3, client_task=False)
+    assert _statuses(sent) == [6.1] and sent[0][2][4] == 0
+
+
+def test_a_changed_status_waits_200_ms_after_the_last_one() -> None:
+    port = FakePort()
+    server = _server(port)
+    server.tick(0.0)
+    assert len(port.take()) == 1
+    server.set_task_active(True)
+    sent = _run(server, port, 0.1, 0.3, client_task=False)
+    assert _statuses(sent) == [0.2]
+
+
+def test_request_default_process_data_goes_to_the_device_element() -> None:
+    pool = section_control_pool(sections=1)
+    commands = TriggerPlan(request_default_process_data=True).commands(pool)
+    assert commands[0] == ElementCommand(Command.REQUEST_VALUE, 0, 0xDFFF)
+    assert encode_first(commands[0]) == bytes([0x02, 0x00, 0xFF, 0xDF, 0xFF, 0xFF, 0xFF, 0xFF])
+
+
+def encode_first(command: ElementCommand) -> bytes:
+    return pd.encode(command)
+
+
+_VALID = [pd.encode(m) for m in (
+    pd.RequestVersion(), pd.Version(3), pd.Version(4), pd.RequestStructureLabel(),
+    pd.RequestLocalizationLabel(), pd.RequestObjectPoolTransfer(2000),
+    pd.ObjectPoolTransfer(section_control_pool(sections=1).to_bytes()),
+    pd.ObjectPoolActivate(True), pd.ObjectPoolActivate(False), pd.DeleteObjectPool(),
+    ElementCommand(Command.VALUE, 2, 7, 5), ElementCommand(Command.SET_VALUE_AND_ACKNOWLEDGE,
+                                                           0, 141, 1),
+    pd.ClientTask(True), pd.ProcessDataAcknowledge(1, 7, AckError.NONE, 4))]
+_WSM = pd.encode_working_set_master(pd.WorkingSetMaster(1))
+
+
+@st.composite
+def _messages(draw: st.DrawFn) -> list[tuple[int, bytes, int]]:
+    """One message (valid, mutated or random), or a whole connection (WSM, pool, activate)."""
+    source = draw(st.sampled_from([0x81, 0x82]))
+    kind = draw(st.integers(0, 4))
+    if kind == 0:
+        return [(pd.WORKING_SET_MASTER_PGN, _WSM, source)]
+    if kind == 1:
+        return [(pd.PROCESS_DATA_PGN, draw(st.sampled_from(_VALID)), source)]
+    if kind == 2:
+        data = bytearray(draw(st.sampled_from(_VALID)))
+        i = draw(st.integers(0, len(data) - 1))
+        data[i] = draw(st.integers(0, 255))
+        return [(pd.PROCESS_DATA_PGN, bytes(data[:draw(st.integers(0, len(data)))]), source)]
+    if kind == 3:
+        return [(pd.WORKING_SET_MASTER_PGN, _WSM, source)] + [
+            (pd.PROCESS_DATA_PGN, _VALID[i], source) for i in (6, 7)]
+    pgn = draw(st.sampled_from([pd.PROCESS_DATA_PGN, pd.WORKING_SET_MASTER_PGN, 0xEA00]))
+    return [(pgn, draw(st.binary(max_size=20)), source)]
+
+
+@settings(max_examples=200, deadline=None, derandomize=True, database=None)
+@given(st.lists(_messages(), max_size=30).map(lambda groups: [m for g in groups for m in g]))
+def test_any_sequence_of_messages_never_crashes_the_server(
+        messages: list[tuple[int, bytes, int]]) -> None:
+    port = FakePort()
+    server = _server(port, setpoints=constant_setpoints({6: 1, 290: 0x55}))
+    for i, (pgn, data, source) in enumerate(messages):
+        port.deliver(pgn, data, i * 0.1, source)
+        server.tick(i * 0.1)
+        for _, payload, _, _ in port.take():
+            assert len(payload) >= 8
+    server.tick(100.0)
+    assert server.sessions == {}
