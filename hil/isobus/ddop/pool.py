@@ -10,6 +10,7 @@ from hil.isobus.ddop.objects import (
     Device,
     DeviceElement,
     ProcessData,
+    ProcessDataProperty,
     Property,
     ValuePresentation,
 )
@@ -27,12 +28,30 @@ class ObjectPool:
     objects: tuple[DdopObject, ...]
     version: int = 4
     _by_id: dict[int, DdopObject] = field(init=False, repr=False, compare=False)
+    _by_number: dict[int, DeviceElement] = field(init=False, repr=False, compare=False)
+    _entities: dict[tuple[int, int], ProcessData | Property] = field(
+        init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        # Look-ups by id, element number and (element number, DDI), built once: the TC answers
+        # every value a client sends with them.
         by_id: dict[int, DdopObject] = {}
         for obj in self.objects:
             by_id.setdefault(obj.object_id, obj)
+        by_number: dict[int, DeviceElement] = {}
+        entities: dict[tuple[int, int], ProcessData | Property] = {}
+        for obj in self.objects:
+            if isinstance(obj, DeviceElement):
+                by_number.setdefault(obj.element_number, obj)
+        for number, element in by_number.items():
+            for child_id in element.children:
+                child = by_id.get(child_id)
+                if isinstance(child, ProcessData | Property):
+                    entities.setdefault((number, child.ddi) if isinstance(child, ProcessData)
+                                        else (number, -1 - child.ddi), child)
         object.__setattr__(self, "_by_id", by_id)
+        object.__setattr__(self, "_by_number", by_number)
+        object.__setattr__(self, "_entities", entities)
 
     @classmethod
     def from_bytes(cls, data: bytes, *, version: int = 4, validate: bool = True) -> ObjectPool:
@@ -76,10 +95,7 @@ class ObjectPool:
 
     def element(self, element_number: int) -> DeviceElement | None:
         """The element with ``element_number``, or ``None``."""
-        for element in self.elements:
-            if element.element_number == element_number:
-                return element
-        return None
+        return self._by_number.get(element_number)
 
     def children(self, element: DeviceElement) -> tuple[ProcessData | Property, ...]:
         """The DPD and DPT objects ``element`` lists, in its order (missing ids skipped)."""
@@ -87,24 +103,20 @@ class ObjectPool:
         return tuple(o for o in found if isinstance(o, ProcessData | Property))
 
     def process_data(self, element_number: int, ddi: int) -> ProcessData | None:
-        """The DPD of ``ddi`` on element ``element_number``, or ``None``."""
-        element = self.element(element_number)
-        if element is None:
-            return None
-        for child in self.children(element):
-            if isinstance(child, ProcessData) and child.ddi == ddi:
-                return child
-        return None
+        """The (first) DPD of ``ddi`` on element ``element_number``, or ``None``."""
+        found = self._entities.get((element_number, ddi))
+        return found if isinstance(found, ProcessData) else None
 
     def property_value(self, element_number: int, ddi: int) -> int | None:
-        """The value of the DPT of ``ddi`` on element ``element_number``, or ``None``."""
-        element = self.element(element_number)
-        if element is None:
-            return None
-        for child in self.children(element):
-            if isinstance(child, Property) and child.ddi == ddi:
-                return child.value
-        return None
+        """The value of the (first) DPT of ``ddi`` on element ``element_number``, or ``None``."""
+        found = self._entities.get((element_number, -1 - ddi))
+        return found.value if isinstance(found, Property) else None
+
+    def settable(self) -> tuple[tuple[int, int], ...]:
+        """``(element number, DDI)`` of every settable DPD, in pool order."""
+        return tuple(key for key, entity in self._entities.items()
+                     if isinstance(entity, ProcessData)
+                     and entity.properties & ProcessDataProperty.SETTABLE)
 
     def presentation(self, obj: ProcessData | Property) -> ValuePresentation | None:
         """The DVP ``obj`` refers to, or ``None``."""

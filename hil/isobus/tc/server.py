@@ -31,8 +31,6 @@ from hil.isobus.ddop import (
     DdopError,
     ObjectPool,
     PoolError,
-    ProcessData,
-    ProcessDataProperty,
 )
 from hil.isobus.port import GLOBAL_ADDRESS, IsobusPort, Received
 from hil.isobus.process_data import AckError, Command, ElementCommand
@@ -77,6 +75,7 @@ class ClientSession:
     triggers_due: bool = False
     task_active: bool = False
     sent_setpoints: dict[tuple[int, int], tuple[int, float]] = field(default_factory=dict)
+    settable: tuple[tuple[int, int], ...] = ()
 
     @property
     def active(self) -> bool:
@@ -235,24 +234,20 @@ class TaskControllerServer:
         pool = session.pool
         if pool is None:
             return
-        for element in pool.elements:
-            for child in pool.children(element):
-                if not isinstance(child, ProcessData) or not (
-                        child.properties & ProcessDataProperty.SETTABLE):
-                    continue
-                key = (element.element_number, child.ddi)
-                value = self.setpoints(SetpointRequest(session.address, session.name,
-                                                       element.element_number, child.ddi, now_s))
-                if value is None:
-                    continue
-                last = session.sent_setpoints.get(key)
-                refresh = self.setpoint_refresh_s
-                if last is not None and last[0] == value and (
-                        refresh is None or now_s - last[1] < refresh):
-                    continue
-                session.sent_setpoints[key] = (value, now_s)
-                self._send(ElementCommand(Command.VALUE, element.element_number, child.ddi,
-                                          value), session.address)
+        for element_number, ddi_ in session.settable:
+            value = self.setpoints(SetpointRequest(session.address, session.name,
+                                                   element_number, ddi_, now_s))
+            if value is None:
+                continue
+            key = (element_number, ddi_)
+            last = session.sent_setpoints.get(key)
+            refresh = self.setpoint_refresh_s
+            if last is not None and last[0] == value and (
+                    refresh is None or now_s - last[1] < refresh):
+                continue
+            session.sent_setpoints[key] = (value, now_s)
+            self._send(ElementCommand(Command.VALUE, element_number, ddi_, value),
+                       session.address)
 
     # --- receiving ----------------------------------------------------------------------------
 
@@ -430,6 +425,7 @@ class TaskControllerServer:
                 int(err.pool_error)), session.address)
             return
         session.pool = pool
+        session.settable = pool.settable()
         session.pool_raw = raw
         session.transfer.clear()
         session.triggers_due = True
