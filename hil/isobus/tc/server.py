@@ -125,15 +125,16 @@ class TaskControllerServer:
         The measurement commands sent after activation.
     setpoint_refresh_s : float or None
         Re-send an unchanged set-point this often (``None``: only on change).
-    language_command : bytes
-        The 8-byte language command payload sent on request.
+    language_command : bytes or None
+        The 8-byte language command payload sent on request; ``None`` when another of the rig's
+        control functions (the tractor ECU, a terminal) answers language requests.
     """
 
     def __init__(self, port: IsobusPort, *, options: ServerOptions | None = None,
                  store: PoolStore | None = None, setpoints: SetpointSource = no_setpoints,
                  triggers: TriggerPlan | None = None, setpoint_refresh_s: float | None = None,
-                 language_command: bytes = DEFAULT_LANGUAGE_COMMAND) -> None:
-        if len(language_command) != 8:
+                 language_command: bytes | None = DEFAULT_LANGUAGE_COMMAND) -> None:
+        if language_command is not None and len(language_command) != 8:
             raise ValueError(f"language command payload is {len(language_command)} bytes, not 8")
         self.port = port
         self.options = options or ServerOptions()
@@ -274,7 +275,7 @@ class TaskControllerServer:
         self._send(pd.RequestVersion(), msg.source)
 
     def _on_request(self, msg: Received) -> None:
-        if self._down(msg.time_s) or len(msg.data) < 3:
+        if self._down(msg.time_s) or len(msg.data) < 3 or self.language_command is None:
             return
         if int.from_bytes(msg.data[:3], "little") == LANGUAGE_COMMAND_PGN:
             self.port.send(LANGUAGE_COMMAND_PGN, self.language_command, GLOBAL_ADDRESS,

@@ -193,6 +193,10 @@ def test_language_command_on_request() -> None:
     assert port.take() == [(0xFE0F, b"en\x40\x00\x00\x00\xff\xff", GLOBAL_ADDRESS, 5)]
     port.deliver(0xEA00, (0xFECA).to_bytes(3, "little"), 0.0)  # DM1: not the TC's to answer
     assert port.take() == []
+    quiet = FakePort()
+    _server(quiet, language_command=None)
+    quiet.deliver(0xEA00, (0xFE0F).to_bytes(3, "little"), 0.0)
+    assert quiet.take() == []
 
 
 def test_malformed_process_data_is_recorded_not_raised() -> None:
