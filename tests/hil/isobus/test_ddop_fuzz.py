@@ -7,7 +7,7 @@ from hil.isobus.ddop import DdopError, DdopParseError, ObjectPool, parse_pool, p
 from hil.isobus.ddop.samples import section_control_pool
 
 SAMPLE = section_control_pool(sections=3).to_bytes()
-FUZZ = settings(max_examples=300, deadline=None, derandomize=True, database=None)
+FUZZ = settings(max_examples=120, deadline=None, derandomize=True, database=None)
 
 
 @st.composite

@@ -109,7 +109,7 @@ def test_encode_refuses_what_does_not_fit() -> None:
         encode(pd.ElementCommand(Command.VALUE, 1, 70000, 0))
 
 
-@settings(max_examples=300, deadline=None, derandomize=True, database=None)
+@settings(max_examples=200, deadline=None, derandomize=True, database=None)
 @given(st.binary(min_size=0, max_size=12))
 def test_decode_never_crashes_and_element_commands_round_trip(data: bytes) -> None:
     try:

@@ -585,7 +585,7 @@ def _messages(draw: st.DrawFn) -> list[tuple[int, bytes, int]]:
     return [(pgn, draw(st.binary(max_size=20)), source)]
 
 
-@settings(max_examples=200, deadline=None, derandomize=True, database=None)
+@settings(max_examples=50, deadline=None, derandomize=True, database=None)
 @given(st.lists(_messages(), max_size=30).map(lambda groups: [m for g in groups for m in g]))
 def test_any_sequence_of_messages_never_crashes_the_server(
         messages: list[tuple[int, bytes, int]]) -> None:
