@@ -16,8 +16,10 @@ transition is judged on its own.
 **Zone transitions** (:func:`transition_distances`). Where the prescribed rate under a
 section steps by more than ``min_step_pct`` while the section applies, the distance along the
 section's track from the boundary to where the applied rate enters and then *stays* within
-``band_pct`` (5 %) of the new rate, until the next change or the end of the run. A run that
-never settles before the next change reads ``inf``.
+``band_pct`` (5 %) of the new rate: the start of the in-band stretch that ends with the last
+in-band sample before the next change (or the end of the run); leaving the band after that
+last in-band sample is the next transition starting early (a TC's look-ahead), which the cell
+accuracy judges. A rate that never enters the band before the next change reads ``inf``.
 
 **Section switching** (:func:`section_switching`). Against where each section *should* have
 applied (inside the work area, not already covered: ``needed_ground``), the metres applied on
@@ -221,6 +223,8 @@ def transition_distances(distance_m: ArrayLike, applying: ArrayLike, applied: Ar
                          min_step_pct: float = 5.0) -> TransitionResult:
     """Distance from each zone boundary until the applied rate stays within ``band_pct``.
 
+    The definition is in the module docstring.
+
     Arrays are (k, s) (or (k,) for one section) as in :func:`cell_accuracy`. A boundary counts
     when the prescribed rate steps by more than ``min_step_pct`` of the larger of the two rates
     and the section applies on both sides; the judged stretch ends at the next change or where
@@ -245,10 +249,13 @@ def transition_distances(distance_m: ArrayLike, applying: ArrayLike, applied: Ar
             if stops.size:
                 end = k + int(stops[0])
             ok = np.abs(a[k:end, j] - new) <= band_pct / 100.0 * abs(new)
-            if not ok[-1]:
+            if not ok.any():
                 dist = math.inf
             else:
-                bad = np.flatnonzero(~ok)
+                # judged up to the last sample in the band: leaving it just before the next
+                # boundary is the next transition starting early (a look-ahead), not this one
+                last = int(np.flatnonzero(ok)[-1])
+                bad = np.flatnonzero(~ok[:last + 1])
                 first = k + (int(bad[-1]) + 1 if bad.size else 0)
                 dist = float(d[first, j] - d[k, j])
             out.append(Transition(j, float(d[k, j]), old, new, dist))

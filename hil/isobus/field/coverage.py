@@ -256,7 +256,9 @@ def needed_ground(boom: Boom, east_m: np.ndarray, north_m: np.ndarray, heading_d
     needed = shapely.contains_xy(work_area, centre[..., 0], centre[..., 1])
     for this_leg in np.unique(leg):
         rows = np.flatnonzero(leg == this_leg)
-        earlier = (leg[:-1] < this_leg)[:, None] & applied[:-1]
+        # interval k -> k+1 counts as covered before this leg if it ended in an earlier one
+        # (so the swath that ends on a section's line at a leg's first sample is not "before")
+        earlier = (leg[1:] < this_leg)[:, None] & applied[:-1]
         if earlier.any():
             covered = shapely.union_all(quads[earlier])
             shapely.prepare(covered)

@@ -130,6 +130,14 @@ def test_a_transition_must_stay_in_the_band() -> None:
     assert r.transitions[0].distance_m == pytest.approx(6.0, abs=0.11)
 
 
+def test_leaving_the_band_just_before_the_next_boundary_is_not_this_transition() -> None:
+    # the next change anticipated by 0.3 m (a look-ahead): the first transition is unchanged
+    applied = np.column_stack([RATES[np.where(D < 40.0, 0, np.where(D < 79.7, 1, 2))]] * 2)
+    r = transition_distances(DIST, ON, applied, PRESCRIBED)
+    assert r.transitions[0].distance_m == 0.0
+    assert r.transitions[2].distance_m == 0.0
+
+
 def test_boundaries_crossed_while_off_or_by_small_steps_are_not_judged() -> None:
     on = ON.copy()
     on[(D > 38.0) & (D < 42.0), 1] = False
