@@ -94,7 +94,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     level = logging.WARNING - 10 * min(args.verbose, 2)
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
     try:
-        return int(args.func(args))
+        code = int(args.func(args))
+        if INTERRUPTS.count:
+            # the signal's KeyboardInterrupt was swallowed on its way (raised inside a
+            # finalizer or a library's catch-all) and the command ran on: the signal is
+            # still the user's, never lost, and the exit status says so
+            print("hil: interrupted (the command finished its work first; what it recorded "
+                  "has been written)", file=sys.stderr)
+            return 130
+        return code
     except KeyboardInterrupt:
         print("hil: interrupted; what was recorded so far has been written", file=sys.stderr)
         return 130

@@ -34,6 +34,7 @@ from hil.cli.args import (
     check_seed,
     prepare_out_dir,
 )
+from hil.cli.phases import PhaseMarks, phase
 from hil.cli.suites import suite_location
 from hil.dut.build import ensure_built, with_build_id
 from hil.dut.profile import DutProfile, load_profile
@@ -123,15 +124,26 @@ def interrupted_record(profile: DutProfile, args: argparse.Namespace, *, run_id:
 
 
 def _qualify(args: argparse.Namespace) -> int:
+    staging: Staging | None = None
     try:
         profile, staging = _prepare(args)
+        # from here on, whatever happens, record.json says this qualification did not
+        # finish until it has; the previous record is kept (record.previous.json). A signal
+        # during begin() is held and arrives right after it, inside the try below
+        staging.begin(interrupted_record(profile, args, run_id=staging.run_id,
+                                         note="the qualification started and has not "
+                                              "finished (or was killed)"))
     except KeyboardInterrupt:
-        print("hil: interrupted before the qualification began; --out is untouched",
-              file=sys.stderr)
-        return 130
+        if staging is None or not staging.path.exists():
+            print("hil: interrupted before the qualification began; --out is untouched",
+                  file=sys.stderr)
+            return 130
+        _finish(staging, profile, args, None)
+        raise
     out = staging.out
     code: int | None = None
     try:
+        phase("qualify:staged")
         with staging.writing():   # a full disk names --out and leaves no staging behind
             code = _run_suites(args, profile, staging.path)
     finally:
@@ -166,12 +178,12 @@ def _finish(staging: Staging, profile: DutProfile, args: argparse.Namespace,
                                                  f"{code}); see the output above"),
                        "verdict": "error"}
             write_json_atomic(record, doc)
+        phase("qualify:promote")          # held: arrives once the outputs are in
         staging.promote()
 
 
 def _prepare(args: argparse.Namespace) -> tuple[DutProfile, Staging]:
-    """Check every option, then stage: from the end of this on, ``record.json`` says the
-    qualification has not finished until it has."""
+    """Check every option and build the DUT: nothing in ``--out`` changes before this ends."""
     # every option is checked before anything runs: a bad one is exit 2, never the DUT's fault
     # a bad profile (or build id) never starts a run
     profile = with_build_id(load_profile(args.profile), args.build_id)
@@ -189,13 +201,8 @@ def _prepare(args: argparse.Namespace) -> tuple[DutProfile, Staging]:
     rig = profile.dut.rig
     suite_location(rig)                            # a rig without suites is a setup error
     _build(args, profile)                          # a DUT that cannot start never runs
-    staging = Staging(out, prefix=STAGING_PREFIX, outputs=OUTPUTS, record="record.json")
-    # from here on, whatever happens, record.json says this qualification did not finish
-    # until it has; the previous record is kept next to it (record.previous.json)
-    staging.begin(interrupted_record(profile, args, run_id=staging.run_id,
-                                     note="the qualification started and has not finished "
-                                          "(or was killed)"))
-    return profile, staging
+    return profile, Staging(out, prefix=STAGING_PREFIX, outputs=OUTPUTS,
+                            record="record.json")
 
 
 def _build(args: argparse.Namespace, profile: DutProfile) -> None:
@@ -211,6 +218,7 @@ def _build(args: argparse.Namespace, profile: DutProfile) -> None:
               f"{build.get('build_dir')}", file=sys.stderr)
         build_dir = Path(str(build["build_dir"])) if build.get("build_dir") else None
     check_launchable(profile, bus=args.bus, clock=args.clock, build=build_dir)
+    phase("qualify:built")
 
 
 def _run_suites(args: argparse.Namespace, profile: DutProfile, stage: Path) -> int:
@@ -218,7 +226,8 @@ def _run_suites(args: argparse.Namespace, profile: DutProfile, stage: Path) -> i
 
     print(f"hil: qualifying {profile.name} {profile.dut.version} on the {profile.dut.rig} rig "
           f"({args.bus}, {args.clock}, suites {args.suite})", file=sys.stderr)
-    return int(pytest.main(pytest_args(args, stage, profile.dut.rig)))
+    phase("qualify:suites")
+    return int(pytest.main(pytest_args(args, stage, profile.dut.rig), plugins=[PhaseMarks()]))
 
 
 def _print_summary(record: dict[str, Any], profile: DutProfile, out: Path) -> None:

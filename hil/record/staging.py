@@ -22,9 +22,11 @@ import contextlib
 import os
 import shutil
 import signal
+import threading
 import uuid
 from collections.abc import Iterator, Sequence
 from pathlib import Path
+from types import FrameType
 from typing import Any
 
 from hil.record.atomic import named_os_error, write_json_atomic
@@ -34,13 +36,38 @@ __all__ = ["Staging", "named_os_error", "signals_held"]
 
 @contextlib.contextmanager
 def signals_held() -> Iterator[None]:
-    """SIGINT/SIGTERM wait (pending) inside the block, then arrive: held, never lost."""
-    held = {signal.SIGINT, signal.SIGTERM}
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    """SIGINT/SIGTERM wait inside the block, then arrive: held, never lost.
+
+    The Python handlers are swapped for one that only notes the signal; on leaving the block
+    the previous handlers are put back and each noted signal is handed to its handler (so
+    ``hil``'s handler raises ``KeyboardInterrupt`` right after the block). Blocking with
+    ``pthread_sigmask`` would not do: it holds signals for the calling thread only, and the
+    kernel hands a process-directed signal to any other thread (a bus reader, a DUT watcher),
+    whose C handler then has Python run the handler in the main thread all the same, in the
+    middle of the block. Outside the main thread (where Python runs no handler) it does
+    nothing.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    noted: list[int] = []
+
+    def note(signum: int, frame: FrameType | None) -> None:
+        noted.append(signum)
+
+    held = (signal.SIGINT, signal.SIGTERM)
+    previous = {sig: signal.signal(sig, note) for sig in held}
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        for signum in noted:
+            handler = previous[signal.Signals(signum)]
+            if callable(handler):
+                handler(signum, None)
+            elif handler == signal.SIG_DFL:
+                signal.raise_signal(signum)
 
 
 class Staging:

@@ -1,0 +1,49 @@
+"""Named phase boundaries of the long commands, where tests inject a signal.
+
+``hil qualify`` and ``hil campaign`` call :func:`phase` at each boundary (setup done, build
+done, suites started, each sample, record written, rerun, promote). With the environment
+variable ``HIL_TEST_SIGNAL_AT`` set to ``NAME`` (or ``NAME@N``: the N-th time that phase is
+reached, counting from 1), the process sends itself SIGINT there, so a test proves that a
+signal at that exact moment is neither lost nor turned into a pass, without relying on timing.
+Unset (always, outside tests), :func:`phase` does nothing.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+
+import pytest
+
+__all__ = ["ENV", "PhaseMarks", "phase"]
+
+#: the environment variable naming the phase to interrupt
+ENV = "HIL_TEST_SIGNAL_AT"
+
+_reached: dict[str, int] = {}
+
+
+def phase(name: str) -> None:
+    """Mark the boundary ``name``; sends SIGINT to this process when ``HIL_TEST_SIGNAL_AT``
+    names it (see the module docstring)."""
+    wanted = os.environ.get(ENV)
+    if not wanted:
+        return
+    target, _, nth = wanted.partition("@")
+    if target != name:
+        return
+    _reached[name] = _reached.get(name, 0) + 1
+    if _reached[name] == (int(nth) if nth.isdigit() else 1):
+        os.kill(os.getpid(), signal.SIGINT)
+
+
+class PhaseMarks:
+    """A pytest plugin marking the phases inside the suites: ``qualify:test`` as each test
+    starts, ``qualify:record`` just before the session's record is written."""
+
+    def pytest_runtest_call(self) -> None:
+        phase("qualify:test")
+
+    @pytest.hookimpl(tryfirst=True)     # before the qualification writes its record
+    def pytest_sessionfinish(self) -> None:
+        phase("qualify:record")
