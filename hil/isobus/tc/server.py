@@ -22,10 +22,12 @@ The server runs on an :class:`~hil.isobus.port.IsobusPort` and keeps its own tim
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from hil.errors import FrameError
 from hil.isobus import process_data as pd
+from hil.isobus.ddi import DDI_TABLE, INT32_MIN, UINT32_MAX
 from hil.isobus.ddop import (
     ActivationError,
     DdopError,
@@ -56,6 +58,22 @@ PRIORITY_DEFAULT = 5
 
 DEFAULT_LANGUAGE_COMMAND = b"en" + bytes([0x40, 0x00, 0x00, 0x00, 0xFF, 0xFF])
 """English, decimal point, 24 h, metric units."""
+
+
+def _check_setpoint(element: int, ddi: int, value: int) -> None:
+    """A set-point source's answer must fit 32 bits and the DDI's range: a value outside is the
+    rig's mistake, and sending it would test the implement on something no TC sends."""
+    if not INT32_MIN <= value <= UINT32_MAX:
+        raise ValueError(f"set-point source: {value} for DDI {ddi} on element {element} does "
+                         f"not fit 32 bits")
+    entry = DDI_TABLE.get(ddi)
+    if entry is None:
+        return
+    raw = value & UINT32_MAX if entry.unsigned else (
+        value - (1 << 32) if value > 2**31 - 1 else value)
+    if not entry.in_range(raw):
+        raise ValueError(f"set-point source: {value} for DDI {ddi} ({entry.name}) on element "
+                         f"{element} is outside {entry.raw_min} .. {entry.raw_max}")
 
 
 @dataclass
@@ -125,6 +143,9 @@ class TaskControllerServer:
         The measurement commands sent after activation.
     setpoint_refresh_s : float or None
         Re-send an unchanged set-point this often (``None``: only on change).
+    on_value : callable, optional
+        Called with every :class:`~hil.isobus.tc.records.LoggedValue` as it is logged (the
+        as-applied recorder's hook).
     language_command : bytes or None
         The 8-byte language command payload sent on request; ``None`` when another of the rig's
         control functions (the tractor ECU, a terminal) answers language requests.
@@ -133,6 +154,7 @@ class TaskControllerServer:
     def __init__(self, port: IsobusPort, *, options: ServerOptions | None = None,
                  store: PoolStore | None = None, setpoints: SetpointSource = no_setpoints,
                  triggers: TriggerPlan | None = None, setpoint_refresh_s: float | None = None,
+                 on_value: Callable[[LoggedValue], None] | None = None,
                  language_command: bytes | None = DEFAULT_LANGUAGE_COMMAND) -> None:
         if language_command is not None and len(language_command) != 8:
             raise ValueError(f"language command payload is {len(language_command)} bytes, not 8")
@@ -142,6 +164,7 @@ class TaskControllerServer:
         self.setpoints = setpoints
         self.triggers = triggers or TriggerPlan()
         self.setpoint_refresh_s = setpoint_refresh_s
+        self.on_value = on_value
         self.language_command = language_command
         self.sessions: dict[int, ClientSession] = {}
         self.values: list[LoggedValue] = []
@@ -240,6 +263,7 @@ class TaskControllerServer:
                                                    element_number, ddi_, now_s))
             if value is None:
                 continue
+            _check_setpoint(element_number, ddi_, value)
             key = (element_number, ddi_)
             last = session.sent_setpoints.get(key)
             refresh = self.setpoint_refresh_s
@@ -384,8 +408,11 @@ class TaskControllerServer:
         elif pool.process_data(message.element, message.ddi) is None:
             errors = AckError.DDI_NOT_SUPPORTED_BY_ELEMENT
         if not errors:
-            self.values.append(LoggedValue(t, session.address, message.element, message.ddi,
-                                           message.value))
+            logged = LoggedValue(t, session.address, message.element, message.ddi,
+                                 message.value)
+            self.values.append(logged)
+            if self.on_value is not None:
+                self.on_value(logged)
         if errors or message.command == Command.SET_VALUE_AND_ACKNOWLEDGE:
             self._send(pd.ProcessDataAcknowledge(message.element, message.ddi, errors,
                                                  message.command), session.address, PRIORITY_ACK)

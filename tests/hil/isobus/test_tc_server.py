@@ -598,3 +598,39 @@ def test_any_sequence_of_messages_never_crashes_the_server(
             assert len(payload) >= 8
     server.tick(100.0)
     assert server.sessions == {}
+
+
+def test_every_logged_value_also_goes_to_the_hook() -> None:
+    seen: list[tuple[int, int, int]] = []
+    port = FakePort()
+    server = _server(port, on_value=lambda v: seen.append((v.element, v.ddi, v.value)))
+    client = Client(port)
+    client.connect(section_control_pool(sections=1), 0.0)
+    client.send(ElementCommand(Command.VALUE, 0, ddi.ACTUAL_WORK_STATE, 1), 0.1)
+    client.send(ElementCommand(Command.VALUE, 0, 6, 1), 0.2)  # refused: not logged
+    assert seen == [(0, ddi.ACTUAL_WORK_STATE, 1)] == [
+        (v.element, v.ddi, v.value) for v in server.values]
+
+
+@pytest.mark.parametrize(("ddi_", "value", "words"), [
+    (ddi.SETPOINT_MASS_PER_AREA_RATE, -5, "outside 0 .. 2147483647"),
+    (ddi.SETPOINT_WORK_STATE, 4, "outside 0 .. 3"),
+    (ddi.SETPOINT_MASS_PER_AREA_RATE, 2**32, "does not fit 32 bits"),
+])
+def test_a_set_point_outside_its_ddi_range_is_the_rigs_error(ddi_: int, value: int,
+                                                            words: str) -> None:
+    port = FakePort()
+    server = _server(port, setpoints=constant_setpoints({ddi_: value}))
+    Client(port).connect(section_control_pool(sections=1), 0.0)
+    with pytest.raises(ValueError, match=f"DDI {ddi_}.*{words}|{words}"):
+        server.tick(0.1)
+
+
+def test_a_condensed_state_may_use_all_32_bits() -> None:
+    port = FakePort()
+    server = _server(port, setpoints=constant_setpoints({290: 0xFFFFFFFF}))
+    client = Client(port)
+    client.connect(section_control_pool(sections=1), 0.0)
+    server.tick(0.1)
+    sent = [m for m in client.replies() if isinstance(m, ElementCommand) and m.ddi == 290]
+    assert [m.unsigned for m in sent] == [0xFFFFFFFF]
