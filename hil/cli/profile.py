@@ -1,9 +1,14 @@
-"""``hil profile``: check DUT profiles and show what they resolve to.
+"""``hil profile``: check DUT profiles, show what they resolve to, and bind a database.
 
     hil profile check dut_profiles/*.toml
     hil profile show dut_profiles/fertilizer-piecewise-pid-firmware.toml --bus softbus
+    hil profile bind my_controller.dbc --rig fertilizer -o my_controller.binding.toml
 
-Exit 0 when every profile is valid, 2 when one is not (the error names file and key).
+``check`` validates the profile, then everything a run would find later: the binding of the
+rig's quantities to the database (``hil.contract.checks``: every problem at once), the
+database's ids against the wiring, ``wiring.command_ids``, ``build.sources``. Exit 0 when every
+profile is valid, 2 when one is not (each error names file, key and fix). ``bind`` writes a
+starting binding, ``# TODO:`` where it could not decide.
 """
 
 from __future__ import annotations
@@ -11,18 +16,25 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 
+from hil.contract.binding import load_binding
+from hil.contract.checks import Problem, check_binding, check_profile_wiring
+from hil.contract.database import BusDatabase
+from hil.contract.registry import rig_contract
+from hil.dut.build import missing_sources
 from hil.dut.factory import load_controller
 from hil.dut.process import command_line
-from hil.dut.profile import DutProfile, load_profile
-from hil.errors import ConfigError
+from hil.dut.profile import DutProfile, database_path, load_profile
+from hil.errors import ConfigError, FrameError
 
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    profile = subparsers.add_parser("profile", help="check or show DUT profiles")
+    profile = subparsers.add_parser("profile", help="check, show or bind DUT profiles")
     sub = profile.add_subparsers(dest="profile_command", metavar="ACTION")
     sub.required = True
-    check = sub.add_parser("check", help="validate DUT profiles (exit 2 on the first error)")
+    check = sub.add_parser("check", help="validate DUT profiles and their bindings (exit 2 "
+                                         "when one is invalid; every problem is listed)")
     check.add_argument("files", nargs="+", help="profile TOML files")
     check.set_defaults(func=_check)
     show = sub.add_parser("show", help="print a profile as resolved (JSON)")
@@ -30,14 +42,52 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
     show.add_argument("--bus", default="softbus", help="bus spec to expand {bus} with")
     show.add_argument("--clock", choices=["lockstep", "realtime"], default="lockstep")
     show.set_defaults(func=_show)
+    bind = sub.add_parser("bind", help="write a starting binding of a rig's quantities to a "
+                                       "CAN database (DBC, KCD, ARXML, SYM)")
+    bind.add_argument("database", help="the controller's CAN database")
+    bind.add_argument("--rig", default="fertilizer", help="the rig (default: fertilizer)")
+    bind.add_argument("-o", "--output", help="write the binding here (default: stdout)")
+    bind.set_defaults(func=_bind)
 
 
 def check_profile(path: str) -> DutProfile:
-    """Everything that can be checked without starting the DUT."""
+    """Everything of the profile itself that can be checked without starting the DUT."""
     profile = load_profile(path)
     if profile.launch.inprocess:
         load_controller(profile)    # imports it and hands it the parameters
     return profile
+
+
+def profile_problems(profile: DutProfile) -> list[Problem]:
+    """What a run of ``profile`` would trip on: its binding, wiring and build sources.
+
+    Returns
+    -------
+    list of Problem
+        Errors and notes (``note=True``), every one found.
+    """
+    src = str(profile.path or "")
+    out: list[Problem] = [
+        Problem(src, "build.sources", f"{name!r} does not exist ({where})",
+                "a path relative to the project root, or {profile_dir}/...")
+        for name, where in missing_sources(profile)]
+    try:
+        contract = rig_contract(profile.dut.rig, profile.rig_config, src)
+        binding = load_binding(contract.binding_file)
+    except ConfigError as exc:
+        return [*out, Problem(exc.path or src, exc.key or "wiring.binding",
+                              str(exc).split("] ", 1)[-1] if exc.key else str(exc))]
+    try:
+        db = BusDatabase(binding.database)
+    except FrameError as exc:
+        return [*out, Problem(binding.source, "database", str(exc),
+                              "a database cantools reads (DBC, KCD, ARXML, SYM)")]
+    out += check_binding(contract, binding, db=db)
+    database = database_path(profile.wiring.database, profile.path) \
+        if profile.wiring.database else None
+    out += check_profile_wiring(profile, contract, binding, database=database,
+                                bound=bool(profile.wiring.binding))
+    return out
 
 
 def _check(args: argparse.Namespace) -> int:
@@ -47,6 +97,14 @@ def _check(args: argparse.Namespace) -> int:
             profile = check_profile(path)
         except ConfigError as exc:
             print(f"hil: error: {exc}", file=sys.stderr)
+            failed += 1
+            continue
+        problems = profile_problems(profile)
+        errors = [p for p in problems if not p.note]
+        for problem in problems:
+            kind = "note" if problem.note else "error"
+            print(f"hil: {kind}: {problem}", file=sys.stderr)
+        if errors:
             failed += 1
             continue
         print(f"ok  {path}: {profile.name} {profile.dut.version} ({profile.dut.kind}, "
@@ -64,4 +122,27 @@ def _show(args: argparse.Namespace) -> int:
            "parameters": profile.parameters,
            "limits": {k: {"low": v.low, "high": v.high} for k, v in profile.limits.items()}}
     print(json.dumps(out, indent=2))
+    return 0
+
+
+def _bind(args: argparse.Namespace) -> int:
+    from hil.contract.bind import write_binding
+
+    database = Path(args.database)
+    if not database.is_file():
+        raise ConfigError(f"CAN database not found ({database.resolve()})",
+                          path=str(database))
+    contract = rig_contract(args.rig)
+    output = Path(args.output) if args.output else None
+    try:
+        text = write_binding(database, contract,
+                             relative_to=output.resolve().parent if output else None)
+    except FrameError as exc:
+        raise ConfigError(str(exc), path=str(database)) from exc
+    if output is None:
+        sys.stdout.write(text)
+    else:
+        output.write_text(text, encoding="utf-8")
+        todo = text.count("TODO")
+        print(f"wrote {output}: {text.count(' = { ')} quantities bound, {todo} TODO")
     return 0

@@ -1,6 +1,10 @@
 """Where each rig keeps its bus databases: the DBC, the CANopen nodes it plays (EDS), its
-bit rate. A table by rig name that a new rig adds itself to (:func:`register`); the core never
-imports a plant unless a run of that rig asks for it.
+bit rate, as conformance needs them.
+
+They come from the rig's own bus contract (:func:`hil.contract.registry.rig_contract`, through
+the rig's registration): the core imports no rig. The database is the binding's in force, so a
+DUT bound to its own database is judged against it. :func:`register` still lets a test or a
+tool put a rig here directly.
 """
 
 from __future__ import annotations
@@ -10,14 +14,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-
-@dataclass(frozen=True)
-class CanopenNode:
-    """A CANopen node the rig plays, described by an EDS."""
-
-    name: str
-    node_id: int
-    eds: Path
+from hil.contract.binding import load_binding
+from hil.contract.quantity import CanopenNode
+from hil.contract.registry import rig_contract
 
 
 @dataclass(frozen=True)
@@ -69,37 +68,19 @@ def rig_bus(rig: str, overrides: Mapping[str, Any] | None = None, source: str = 
         No rig of that name is registered.
     """
     key = rig.replace("-", "_")
-    if key not in _RIGS:
+    if key in _RIGS:
+        return _RIGS[key](overrides or {}, source)
+    from hil.rig.registry import available_rigs
+
+    if key not in available_rigs():
         raise KeyError(f"no bus databases registered for the rig {rig!r} "
-                       f"(known: {', '.join(sorted(_RIGS))})")
-    return _RIGS[key](overrides or {}, source)
+                       f"(known: {', '.join(available_rigs())})")
+    contract = rig_contract(key, overrides, source)
+    binding = load_binding(contract.binding_file)
+    return RigBus(dbc=binding.database, dut_node=binding.dut_node or contract.dut_node,
+                  canopen_nodes=contract.canopen_nodes, bitrate_bps=contract.bitrate_bps,
+                  command_ids=contract.command_ids,
+                  dut_is_nmt_master=contract.dut_is_nmt_master)
 
 
-def _fertilizer(overrides: Mapping[str, Any], source: str) -> RigBus:
-    from plant_emulators.fertilizer.config import load_rig_config
-
-    wiring = load_rig_config(overrides=overrides, source=source).wiring
-    analog = wiring.analog_output_node_id
-    return RigBus(dbc=Path(wiring.dbc_file), dut_node="Controller",
-                  canopen_nodes=(CanopenNode("analog output module", analog,
-                                             Path(wiring.analog_output_eds_file)),),
-                  bitrate_bps=wiring.bitrate_bps, command_ids=frozenset({0x200 + analog}))
-
-
-def _sowing_depth(overrides: Mapping[str, Any], source: str) -> RigBus:
-    from plant_emulators.sowing_depth.config import load_rig_config
-    from plant_emulators.sowing_depth.frames import DBC_PATH, EDS_PATH
-
-    wiring = load_rig_config(overrides=overrides, source=source).wiring
-    drive = wiring.drive_node_id
-    return RigBus(dbc=DBC_PATH, dut_node="DepthController",
-                  canopen_nodes=(CanopenNode("servo drive", drive, EDS_PATH),),
-                  bitrate_bps=wiring.bitrate_bit_per_s,
-                  command_ids=frozenset({0x200 + drive, 0x300 + drive}),
-                  # the depth controller starts the drive (NMT start when its heartbeat shows
-                  # it is not Operational): the DBC is J1939 only, the drive is its EDS's
-                  dut_is_nmt_master=True)
-
-
-register("fertilizer", _fertilizer)
-register("sowing_depth", _sowing_depth)
+__all__ = ["CanopenNode", "RigBus", "register", "rig_bus"]

@@ -151,6 +151,18 @@ class Contract:
         The rig's shipped dispersion file for ``hil campaign``.
     control_period_ms : float
         The SYNC period.
+    physics_period_ms : float
+        The physics step: the rig sends on these steps only.
+    command_quantities : tuple of str
+        The quantities the DUT sends once per control period: their frames end a lockstep
+        step (the rig's command ids under any binding).
+    fixed_ids : mapping of str to int
+        Quantities whose frame id the wiring fixes whatever the database (a CANopen device's
+        RPDO as its EDS maps it, the DUT's heartbeat at 0x700 + node id).
+    fixed_id_reasons : mapping of str to str
+        Why, per quantity of :attr:`fixed_ids`.
+    dut_node_id : int
+        The DUT's node id in the rig's wiring.
     """
 
     rig: str
@@ -167,6 +179,11 @@ class Contract:
     periods_ms: Mapping[str, float] = field(default_factory=dict)
     dispersion_file: Path | None = None
     control_period_ms: float = 100.0
+    physics_period_ms: float = 1.0
+    command_quantities: tuple[str, ...] = ()
+    fixed_ids: Mapping[str, int] = field(default_factory=dict)
+    fixed_id_reasons: Mapping[str, str] = field(default_factory=dict)
+    dut_node_id: int = 0
 
     def quantity(self, name: str) -> Quantity:
         """The quantity called ``name``.

@@ -46,14 +46,26 @@ def cache_root() -> Path:
 
 
 def profile_dir(profile: DutProfile) -> Path:
-    """The directory of the profile's file (the working directory for a profile without one)."""
-    return profile.path.parent if profile.path else Path.cwd()
+    """The directory of the profile's file, absolute (the working directory without one).
+
+    A relative profile path is taken from the working directory, where the user named it: left
+    relative, ``{profile_dir}`` would later be joined to the project root instead.
+    """
+    return profile.path.resolve().parent if profile.path else Path.cwd()
 
 
 def resolve(path: str, profile: DutProfile) -> Path:
     """Relative paths in a profile are relative to the project root (where the sources are)."""
     p = Path(expand(path, profile))
     return p if p.is_absolute() else PROJECT_ROOT / p
+
+
+def missing_sources(profile: DutProfile) -> list[tuple[str, Path]]:
+    """The ``build.sources`` that do not exist, each with where it was looked for."""
+    if profile.build is None:
+        return []
+    return [(src, root) for src in profile.build.sources
+            if not (root := resolve(src, profile)).exists()]
 
 
 def source_hash(profile: DutProfile) -> str:

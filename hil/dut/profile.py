@@ -11,7 +11,7 @@ profile never starts a run. Layout (``dut_profiles/<rig>-<controller>-<kind>.tom
     [launch]      command (argv) for a process DUT, lockstep_args / realtime_args, env,
                   inprocess ("module:Class", used in lockstep on the inline bus), ready,
                   ready_timeout_s, stop_timeout_s
-    [wiring]      node_id, heartbeat_id, command_ids, database
+    [wiring]      node_id, heartbeat_id, command_ids, database, binding
     [timing]      control_period_ms, heartbeat_period_ms, max_frames_per_period
     [parameters]  name = number | string | bool, handed to the controller
     [limits]      "measurement.name" = { low = …, high = … }
@@ -180,7 +180,12 @@ class Wiring:
     command_ids : tuple of int, optional
         Frames the rig waits for after each SYNC in lockstep (empty: the rig's own choice).
     database : str, optional
-        Its CAN database (DBC), absolute or relative to the project root or the profile.
+        Its CAN database (DBC, KCD, ARXML or SYM), absolute or relative to the project root or
+        the profile: bus conformance judges the DUT against it.
+    binding : str, optional
+        A binding file (TOML, :mod:`hil.contract.binding`) of the rig's quantities to that
+        database: the rig then speaks the DUT's frames. Empty: the rig's own database and
+        default binding.
 
     Raises
     ------
@@ -191,6 +196,7 @@ class Wiring:
     node_id: int
     command_ids: tuple[int, ...] = ()
     database: str = ""
+    binding: str = ""
 
     def __post_init__(self) -> None:
         if not 1 <= self.node_id <= 127:
@@ -376,6 +382,7 @@ def load_profile(path: str | Path) -> DutProfile:
         raise ConfigError("expected a table of rig config overrides", path=str(path), key="rig")
     profile = from_mapping(DutProfile, data, path=str(path))
     _check(profile, str(path))
+    rig_config = _with_binding(profile, rig_config, path)
     _check_rig_config(profile.dut.rig, rig_config, str(path))
     _check_control_period(profile, rig_config, str(path))
     _check_database(profile, path)
@@ -436,6 +443,34 @@ def database_path(database: str, profile_path: Path | None) -> Path:
         return at_root
     beside = profile_path.parent / p
     return beside if beside.exists() else at_root
+
+
+def _with_binding(profile: DutProfile, rig_config: dict[str, Any], path: Path) -> dict[str, Any]:
+    """``[wiring] binding`` read (errors name its file and key), handed to the rig.
+
+    It goes in as ``[rig] wiring.binding_file``, the way every run, campaign sample and record
+    gets the rig's config.
+    """
+    if not profile.wiring.binding:
+        return rig_config
+    where = {"path": str(path), "key": "wiring.binding"}
+    wiring = rig_config.get("wiring", {})
+    if isinstance(wiring, dict) and "binding_file" in wiring:
+        raise ConfigError("give the binding once: [wiring] binding, not [rig] "
+                          "wiring.binding_file", **where)
+    target = database_path(profile.wiring.binding, path)
+    if not target.is_file():
+        raise ConfigError(f"binding file {profile.wiring.binding!r} not found ({target})",
+                          **where)
+    from hil.contract.binding import load_binding
+
+    binding = load_binding(target)
+    if binding.rig != profile.dut.rig.replace("-", "_"):
+        raise ConfigError(f"{target.name} binds the {binding.rig} rig's quantities, the DUT is "
+                          f"wired to the {profile.dut.rig} rig", **where)
+    wiring = dict(wiring) if isinstance(wiring, dict) else {}
+    wiring["binding_file"] = str(target.resolve())
+    return {**rig_config, "wiring": wiring}
 
 
 @functools.lru_cache(maxsize=32)

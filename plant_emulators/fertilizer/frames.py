@@ -381,4 +381,11 @@ def bus_contract(config: FertilizerRigConfig | None = None) -> Contract:
                     "wheel_based_speed": float(w.tractor_speed_period_ms),
                     "row_flow": sensor.report_period_s * 1000.0},
         dispersion_file=Path(__file__).with_name("dispersion.toml"),
-        control_period_ms=100.0)
+        control_period_ms=100.0, physics_period_ms=1.0,
+        command_quantities=("motor_command",),
+        fixed_ids={"motor_command": 0x200 + analog, "dut_nmt_state": 0x700 + w.dut_node_id},
+        fixed_id_reasons={
+            "motor_command": f"RPDO1 of the analog output module, node {analog:#x}, as its "
+                             f"EDS maps it",
+            "dut_nmt_state": f"the DUT's CANopen heartbeat, 0x700 + node {w.dut_node_id:#x}"},
+        dut_node_id=w.dut_node_id)

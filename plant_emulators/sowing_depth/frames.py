@@ -391,3 +391,109 @@ def _decimals(scale: float) -> int:
         if abs(round(scale, places) - scale) < 1e-12:
             return places
     return 10
+
+
+# ------------------------------------------------------------------ the rig's bus contract
+#: The rig's default binding: every quantity on its frame of the rig's own DBC.
+DEFAULT_BINDING = _DB_DIR / "sowing_depth.binding.toml"
+
+_DIRECTIONS = {0: "reverse", 1: "forward", 2: "error", 3: "not_available"}
+_WIRE_STATUS = {0: "ok", 1: "out_of_range", 2: "error", 3: "not_available"}
+_INC_STATUS = {0: "ok", 1: "below_range", 2: "above_range", 3: "not_available"}
+_ENABLE = {0: "off", 1: "on", 2: "error", 3: "not_available"}
+_MODES = {0: "manual", 1: "automatic", 2: "constant_position", 15: "not_available"}
+_STATES = {0: "initialising", 1: "ready", 2: "controlling", 3: "manual", 4: "fault",
+           15: "not_available"}
+
+
+def _q(name: str, unit: str, direction: str, lo: float, hi: float, res: float, text: str,
+       **kw: Any) -> Any:
+    from hil.contract.quantity import Quantity
+
+    return Quantity(name, unit, direction, lo, hi, res, text, **kw)  # type: ignore[arg-type]
+
+
+def _quantities() -> tuple[Any, ...]:
+    return (
+        # the tractor ECU's ground-based speed (PGN 65097)
+        _q("ground_speed", "m/s", "to_dut", 0, 64.255, 0.001,
+           "true ground speed (PGN 65097); the controller holds the drive at standstill",
+           required=True),
+        _q("ground_distance", "m", "to_dut", 0, 4211081.215, 0.001, "ground distance"),
+        _q("ground_direction", "", "to_dut", 0, 3, 1, "machine direction", kind="enum",
+           values=_DIRECTIONS),
+        # the draw-wire sensor on the press roller
+        _q("roller_position", "mm", "to_dut", 0, 150, 0.01,
+           "press roller travel (draw-wire sensor)", required=True),
+        _q("roller_position_status", "", "to_dut", 0, 3, 1, "draw-wire sensor status",
+           kind="enum", values=_WIRE_STATUS),
+        _q("roller_position_counter", "", "to_dut", 0, 15, 1,
+           "draw-wire sensor's rolling counter", kind="counter"),
+        # the inclinometer's analog input module
+        _q("inclinometer_x", "mV", "to_dut", 0, 5000, 1,
+           "inclinometer X output (press arm angle, the depth)", required=True),
+        _q("inclinometer_y", "mV", "to_dut", 0, 5000, 1, "inclinometer Y output (roll)"),
+        _q("inclinometer_x_status", "", "to_dut", 0, 3, 1, "X channel status", kind="enum",
+           values=_INC_STATUS),
+        _q("inclinometer_y_status", "", "to_dut", 0, 3, 1, "Y channel status", kind="enum",
+           values=_INC_STATUS),
+        _q("inclinometer_counter", "", "to_dut", 0, 15, 1, "the module's rolling counter",
+           kind="counter"),
+        # the operator terminal
+        _q("target_depth", "mm", "to_dut", 0, 150, 0.1, "depth set-point", required=True),
+        _q("manual_roller_position", "mm", "to_dut", 0, 100, 0.01,
+           "roller position in manual mode"),
+        _q("depth_enable", "", "to_dut", 0, 3, 1, "the terminal enables depth control",
+           kind="enum", values=_ENABLE, required=True),
+        _q("depth_mode", "", "to_dut", 0, 15, 1, "manual / automatic / constant position",
+           kind="enum", values=_MODES, required=True),
+        _q("setpoint_counter", "", "to_dut", 0, 15, 1, "terminal's rolling counter",
+           kind="counter"),
+        # what the DUT sends: its status frame (the drive's command goes to the drive's RPDOs
+        # as its EDS maps them, CiA 402: not a database signal)
+        _q("dut_measured_depth", "mm", "from_dut", -100, 200, 0.1,
+           "status: the depth the controller believes"),
+        _q("dut_roller_position_command", "mm", "from_dut", 0, 100, 0.01,
+           "status: the roller position it commands"),
+        _q("dut_state", "", "from_dut", 0, 15, 1, "status: controller state", kind="enum",
+           values=_STATES),
+        _q("dut_sensor_fault", "", "from_dut", 0, 1, 1, "status: sensor fault", kind="flag"),
+        _q("dut_drive_fault", "", "from_dut", 0, 1, 1, "status: drive fault", kind="flag"),
+        _q("dut_speed_lost", "", "from_dut", 0, 1, 1, "status: ground speed lost",
+           kind="flag"),
+        _q("dut_status_counter", "", "from_dut", 0, 15, 1, "status: rolling counter",
+           kind="counter"),
+    )
+
+
+def bus_contract(config: Any = None) -> Any:
+    """The sowing-depth rig's bus contract under ``config`` (default: the packaged one)."""
+    from hil.contract.quantity import CanopenNode, Contract
+    from plant_emulators.sowing_depth.config import load_rig_config
+
+    cfg = config or load_rig_config()
+    w = cfg.wiring
+    drive = w.drive_node_id
+    node_ids = {"NMT": 0x000, "SYNC": 0x080,
+                "servo drive heartbeat": 0x700 + drive, "servo drive EMCY": 0x080 + drive,
+                "servo drive SDO answer": 0x580 + drive, "servo drive SDO request": 0x600 + drive,
+                **{f"servo drive TPDO{n}": base + drive
+                   for n, base in enumerate((0x180, 0x280, 0x380, 0x480), 1)},
+                **{f"servo drive RPDO{n}": base + drive
+                   for n, base in enumerate((0x200, 0x300, 0x400, 0x500), 1)}}
+    return Contract(
+        rig="sowing_depth", quantities=_quantities(), rows=1,
+        binding_file=Path(w.binding_file) if w.binding_file else DEFAULT_BINDING,
+        default_binding_file=DEFAULT_BINDING, dut_node="DepthController",
+        canopen_nodes=(CanopenNode("servo drive", drive, EDS_PATH),),
+        bitrate_bps=w.bitrate_bit_per_s,
+        command_ids=frozenset({0x200 + drive, 0x300 + drive}),
+        # the depth controller starts the drive (NMT start when its heartbeat shows it is not
+        # Operational): the DBC is J1939 only, the drive is its EDS's
+        dut_is_nmt_master=True, node_ids=node_ids,
+        periods_ms={"ground_speed": float(w.ground_speed_period_ms),
+                    "roller_position": float(w.draw_wire_period_ms),
+                    "inclinometer_x": float(w.inclinometer_period_ms),
+                    "target_depth": float(w.depth_setpoint_period_ms)},
+        dispersion_file=Path(__file__).with_name("dispersion.toml"),
+        control_period_ms=float(w.sync_period_ms), physics_period_ms=1.0)

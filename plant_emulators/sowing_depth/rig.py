@@ -75,6 +75,14 @@ class SowingDepthRig(Rig):
                     source: str = "") -> SowingDepthRigConfig:
         return load_rig_config(overrides=overrides, source=source)
 
+    @classmethod
+    def bus_contract(cls, overrides: Mapping[str, Any] | None = None,
+                     source: str = "") -> Any:
+        """The rig's bus contract (quantities, binding in force, nodes) under ``overrides``."""
+        from plant_emulators.sowing_depth.frames import bus_contract
+
+        return bus_contract(load_rig_config(overrides=overrides, source=source))
+
     def __init__(self, ctx: RigContext, config: SowingDepthRigConfig | None = None) -> None:
         super().__init__(ctx)
         cfg = config or load_rig_config(overrides=ctx.config_overrides,
