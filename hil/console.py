@@ -49,6 +49,43 @@ def measurement_line(m: dict[str, Any]) -> str:
     return " ".join(line.split())
 
 
+def is_conformance(m: dict[str, Any]) -> bool:
+    """A bus conformance check (``bus.*``), recorded for every run of a qualification."""
+    return str(m.get("name", "")).startswith("bus.")
+
+
+def conformance_line(measurements: Iterable[dict[str, Any]]) -> str:
+    """One line for a test's bus conformance checks, e.g.
+    ``bus conformance: 13 checks over 1 run, all pass``."""
+    ms = list(measurements)
+    runs = {m.get("run") for m in ms}
+    bad = sum(1 for m in ms if m.get("outcome") in ("fail", "error"))
+    verdict = f"{bad} failed" if bad else "all pass"
+    return (f"bus conformance: {len(ms)} check{'s' if len(ms) != 1 else ''} over {len(runs)} "
+            f"run{'s' if len(runs) != 1 else ''}, {verdict}")
+
+
+def test_lines(measurements: Iterable[dict[str, Any]], *,
+               verbose: bool = False) -> list[tuple[str, bool]]:
+    """What the console prints under a test: (line, is it a failure).
+
+    The control measurements one per line; the bus conformance checks as one summary line, then
+    each failed check on its own line; every check with ``verbose`` (or when any fails, the
+    failing ones only: the record and the report have the others).
+    """
+    ms = list(measurements)
+    bus = [m for m in ms if is_conformance(m)]
+    out = [(measurement_line(m), m.get("outcome") in ("fail", "error"))
+           for m in ms if not is_conformance(m)]
+    if bus:
+        bad = [m for m in bus if m.get("outcome") in ("fail", "error")]
+        out.append((conformance_line(bus), bool(bad)))
+        shown = bus if verbose else bad
+        out += [("  " + measurement_line(m), m.get("outcome") in ("fail", "error"))
+                for m in shown]
+    return out
+
+
 def summary_lines(measurements: Iterable[dict[str, Any]], tests: Iterable[dict[str, Any]],
                   *, not_run: Iterable[str] = ()) -> list[str]:
     """The end-of-qualification summary (counts, failed measurements, failed and unrun

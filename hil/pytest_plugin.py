@@ -93,6 +93,26 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                          "no bus logs, no traces files, no report.html (campaign samples)")
 
 
+@pytest.hookimpl(tryfirst=True)
+def pytest_load_initial_conftests(early_config: pytest.Config, parser: pytest.Parser,
+                                  args: list[str]) -> None:
+    """A qualification (``--hil-dut``) runs no benchmarks: pytest-benchmark is blocked.
+
+    Loaded, it creates an empty ``.benchmarks/`` in the working directory of every run.
+
+    Parameters
+    ----------
+    early_config : pytest.Config
+        pytest's configuration, before the plugins are configured.
+    parser : pytest.Parser
+        The option parser, unused.
+    args : list of str
+        The command line.
+    """
+    if any(a == "--hil-dut" or a.startswith("--hil-dut=") for a in args):
+        early_config.pluginmanager.set_blocked("benchmark")
+
+
 def pytest_configure(config: pytest.Config) -> None:
     """Register the markers and, with ``--hil-dut``, start the qualification session.
 
@@ -547,18 +567,21 @@ class QualificationSession:
             self._print_measurements(report)
 
     def _print_measurements(self, report: pytest.TestReport) -> None:
-        """Each measurement of the test as it is judged (verbose runs: ``hil qualify``)."""
-        from hil.console import measurement_line
+        """Print the test's control measurements and one line for its bus conformance.
+
+        Verbose runs only (``hil qualify``); every check with ``-vv``, the failed ones always.
+        """
+        from hil.console import test_lines
 
         config = self._config
         terminal = config.pluginmanager.get_plugin("terminalreporter") if config else None
         if terminal is None or config is None or config.get_verbosity() < 1:
             return
         terminal.ensure_newline()
-        for m in self.measurements:
-            if m["test"] == report.nodeid:
-                terminal.write_line("    " + measurement_line(m),
-                                    red=m["outcome"] in ("fail", "error"))
+        mine = [m for m in self.measurements if m["test"] == report.nodeid]
+        # -vv (pytest) prints every bus conformance check; -v one line for them
+        for line, bad in test_lines(mine, verbose=config.get_verbosity() >= 2):
+            terminal.write_line("    " + line, red=bad)
 
     def _log_test(self, report: pytest.TestReport) -> None:
         if report.when == "call" or (report.when == "setup" and report.outcome != "passed"):

@@ -10,6 +10,8 @@ from pathlib import Path
 
 import pytest
 
+REPO = Path(__file__).resolve().parents[2]
+
 PROFILE = '''
 [dut]
 name = "toy-pi-inprocess"
@@ -170,3 +172,51 @@ def test_the_record_names_the_rig_config_and_the_profile_overrides() -> None:
     assert a["config_overrides"] == {"flow_sensor.mode": "sliding"}
     assert b["config_overrides"] == "none (the packaged config)"
     assert len(a["config_sha256"]) == 64 and a["config_sha256"] != b["config_sha256"]
+
+
+# --- the console (issue 31.7) and the working directory (issue 31.9) ----------------------------
+
+
+def _m(name: str, outcome: str = "pass", run: str = "runs/a") -> dict[str, object]:
+    return {"name": name, "value": 1.0, "unit": "%", "low": None, "high": 5.0,
+            "conditions": {}, "outcome": outcome, "marginal": False, "note": "why",
+            "run": run}
+
+
+def test_console_prints_control_measurements_and_one_conformance_line() -> None:
+    from hil.console import test_lines
+
+    ms = [_m("flow.step.overshoot"), *(_m(f"bus.share{i}") for i in range(13)),
+          _m("bus.dlc_errors", run="runs/b")]
+    lines = test_lines(ms)
+    assert [text.split(" = ")[0] for text, _ in lines] == [
+        "flow.step.overshoot", "bus conformance: 14 checks over 2 runs, all pass"]
+    assert not any(bad for _, bad in lines)
+    assert len(test_lines(ms, verbose=True)) == 2 + 14          # -vv: every check
+
+
+def test_console_prints_every_failed_conformance_check() -> None:
+    from hil.console import test_lines
+
+    ms = [_m("flow.step.overshoot"), _m("bus.share"), _m("bus.heartbeat.period", "fail")]
+    lines = test_lines(ms)
+    assert lines[1] == ("bus conformance: 2 checks over 1 run, 1 failed", True)
+    assert lines[2][0].startswith("  bus.heartbeat.period = 1 % FAIL") and lines[2][1]
+    assert len(lines) == 3
+
+
+@pytest.mark.parametrize("qualification", [True, False])
+def test_a_qualification_leaves_no_benchmarks_directory(tmp_path: Path,
+                                                        qualification: bool) -> None:
+    """pytest-benchmark creates ``.benchmarks/`` in the working directory when it is loaded;
+    a qualification (--hil-dut) blocks it. Without --hil-dut the directory appears, which
+    shows the check can fail."""
+    (tmp_path / "test_nothing.py").write_text("def test_nothing():\n    pass\n")
+    hil = (["--hil-dut", str(REPO / "dut_profiles/fertilizer-piecewise-pid-daemon.toml"),
+            "--hil-bus", "inline", "--hil-report", str(tmp_path / "report")]
+           if qualification else [])
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "--co", "-p",
+                           "no:cacheprovider", "test_nothing.py", *hil],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert (tmp_path / ".benchmarks").exists() is not qualification
