@@ -385,7 +385,7 @@ class CanopenDevice(Device):
                 period = self._event_period(key)
                 due += (math.floor((time_s + 1e-9 - due) / period) + 1) * period
             candidates.append(due)
-        if self._emcy_pending:
+        if self._emcy_pending and self.node.nmt.state != "STOPPED":   # stopped: they wait
             candidates.append(max(self._emcy_last_s + self._emcy_inhibit_s(), time_s + 1e-6))
         return min(candidates)
 
