@@ -189,11 +189,18 @@ class TaskControllerServer:
             return
         changed = self._status_changed and (
             self._last_status_s is None or now_s - self._last_status_s >= MIN_STATUS_INTERVAL_S)
-        if changed or self._next_status_s is None or now_s >= self._next_status_s:
+        periodic = self._next_status_s is not None and now_s >= self._next_status_s
+        if changed or periodic or self._next_status_s is None:
             self._send(pd.TaskControllerStatus(self.status), GLOBAL_ADDRESS, PRIORITY_STATUS)
             self._status_changed = False
             self._last_status_s = now_s
-            self._next_status_s = now_s + STATUS_PERIOD_S
+            if periodic and not changed:
+                # absolute deadlines: ticks that come late do not stretch the period
+                assert self._next_status_s is not None
+                while self._next_status_s <= now_s:
+                    self._next_status_s += STATUS_PERIOD_S
+            else:
+                self._next_status_s = now_s + STATUS_PERIOD_S
         for address, session in list(self.sessions.items()):
             if now_s - session.last_seen_s >= CLIENT_TIMEOUT_S:
                 del self.sessions[address]

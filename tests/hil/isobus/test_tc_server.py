@@ -634,3 +634,14 @@ def test_a_condensed_state_may_use_all_32_bits() -> None:
     server.tick(0.1)
     sent = [m for m in client.replies() if isinstance(m, ElementCommand) and m.ddi == 290]
     assert [m.unsigned for m in sent] == [0xFFFFFFFF]
+
+
+def test_late_ticks_do_not_stretch_the_status_period() -> None:
+    port = FakePort()
+    server = _server(port)
+    times = [0.0, 2.013, 4.013, 6.005, 8.0, 9.999, 10.0]
+    sent = []
+    for t in times:
+        server.tick(t)
+        sent += [t for _, data, _, _ in port.take() if data[0] == 0xFE]
+    assert sent == [0.0, 2.013, 4.013, 6.005, 8.0, 10.0]
