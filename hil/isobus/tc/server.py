@@ -149,13 +149,21 @@ class TaskControllerServer:
     language_command : bytes or None
         The 8-byte language command payload sent on request; ``None`` when another of the rig's
         control functions (the tractor ECU, a terminal) answers language requests.
+    nack_to_client : bool
+        Address the negative acknowledgement to the client instead of to everyone. J1939-21
+        (which ISO 11783-3 follows) sends the acknowledgement PGN to the global address, with
+        the acknowledged address in byte 5, and that is the default; AgIsoStack++'s client
+        (at 509a920c) hears an acknowledgement from its TC only when addressed to it
+        (``process_can_message_for_global_and_partner_callbacks``), so it never sees a global
+        NACK and keeps sending after a TC restart shorter than its 6 s status timeout.
     """
 
     def __init__(self, port: IsobusPort, *, options: ServerOptions | None = None,
                  store: PoolStore | None = None, setpoints: SetpointSource = no_setpoints,
                  triggers: TriggerPlan | None = None, setpoint_refresh_s: float | None = None,
                  on_value: Callable[[LoggedValue], None] | None = None,
-                 language_command: bytes | None = DEFAULT_LANGUAGE_COMMAND) -> None:
+                 language_command: bytes | None = DEFAULT_LANGUAGE_COMMAND,
+                 nack_to_client: bool = False) -> None:
         if language_command is not None and len(language_command) != 8:
             raise ValueError(f"language command payload is {len(language_command)} bytes, not 8")
         self.port = port
@@ -166,6 +174,7 @@ class TaskControllerServer:
         self.setpoint_refresh_s = setpoint_refresh_s
         self.on_value = on_value
         self.language_command = language_command
+        self.nack_to_client = nack_to_client
         self.sessions: dict[int, ClientSession] = {}
         self.values: list[LoggedValue] = []
         self.acknowledgements: list[ReceivedAcknowledge] = []
@@ -252,7 +261,8 @@ class TaskControllerServer:
         pgn = pd.PROCESS_DATA_PGN
         payload = bytes([0x01, 0xFF, 0xFF, 0xFF, address, pgn & 0xFF, (pgn >> 8) & 0xFF,
                          pgn >> 16])
-        self.port.send(ACKNOWLEDGEMENT_PGN, payload, GLOBAL_ADDRESS, PRIORITY_DEFAULT)
+        destination = address if self.nack_to_client else GLOBAL_ADDRESS
+        self.port.send(ACKNOWLEDGEMENT_PGN, payload, destination, PRIORITY_DEFAULT)
 
     def _send_triggers(self, session: ClientSession) -> None:
         if not session.triggers_due or session.pool is None:

@@ -186,6 +186,14 @@ def test_process_data_before_the_working_set_master_is_nacked() -> None:
     assert server.events[-1].kind == EventKind.REJECTED_MESSAGE
 
 
+def test_the_nack_can_be_addressed_to_the_client_for_peers_that_need_it() -> None:
+    port = FakePort()
+    _server(port, nack_to_client=True)
+    port.deliver(pd.PROCESS_DATA_PGN, pd.encode(pd.RequestStructureLabel()), 0.0)
+    ((pgn, data, dest, _),) = port.take()
+    assert (pgn, dest, data[4]) == (0xE800, CLIENT, CLIENT)
+
+
 def test_language_command_on_request() -> None:
     port = FakePort()
     _server(port)
