@@ -12,6 +12,7 @@ WGS84 longitude/latitude (RFC 7946).
 ``coverage``      coverage and the section on/off rule (:class:`SectionControl`)
 ``as_applied``    what was applied, and the as-applied map (:class:`AsAppliedRecord`)
 ``drive``         the reference run: a path driven with an ideal implement (:func:`drive_field`)
+``taskdata``      ISO 11783-10 TASKDATA grids (types 1, 2) as maps (:func:`load_taskdata_grid`)
 ================  ==========================================================================
 """
 
@@ -36,6 +37,7 @@ from hil.isobus.field.prescription import (
     load_prescription,
     prescription_from_geojson,
 )
+from hil.isobus.field.taskdata import load_taskdata_grid
 
 __all__ = [
     "AsAppliedArrays",
@@ -58,6 +60,7 @@ __all__ = [
     "field_to_geojson",
     "load_field",
     "load_prescription",
+    "load_taskdata_grid",
     "needed_ground",
     "prescription_from_geojson",
     "rectangular_field",

@@ -16,8 +16,9 @@ features named); they may share edges. A point on an edge shared by two zones ta
 of the zone listed first. Lookups run in a local east/north plane (:mod:`.geodesy`) through a
 shapely STRtree, so a 10,000-zone grid map answers as fast as a three-zone one.
 
-Units: ``kg/ha`` (mass per area, ISO 11783-11 DDI 6 in mg/m²) and ``l/ha`` (volume per area,
-DDI 1 in mm³/m²); both are 100 DDI units per map unit.
+Units: ``kg/ha`` (mass per area, ISO 11783-11 DDI 6 in mg/m², resolution 1: 100 raw values
+per kg/ha) and ``l/ha`` (volume per area, DDI 1 in mm³/m², resolution 0.01: 10,000 raw values
+per l/ha).
 """
 
 from __future__ import annotations
@@ -51,12 +52,13 @@ class RateUnit:
     ddi: int
     """The set-point DDI (6: mass per area, 1: volume per area)."""
     ddi_per_unit: float
-    """DDI raw units per map unit: 1 kg/ha = 100 mg/m², 1 l/ha = 100 mm³/m²."""
+    """Raw DDI values per map unit: 1 kg/ha = 100 mg/m² (DDI 6, resolution 1 mg/m²);
+    1 l/ha = 100 mm³/m² = 10,000 raw values of DDI 1 (resolution 0.01 mm³/m²)."""
 
 
 RATE_UNITS: dict[str, RateUnit] = {
     "kg/ha": RateUnit("kg/ha", 6, 100.0),
-    "l/ha": RateUnit("l/ha", 1, 100.0),
+    "l/ha": RateUnit("l/ha", 1, 10_000.0),
 }
 """The rate units a map may state."""
 
