@@ -85,26 +85,56 @@ def _row_template(name: str, names: set[str], rows: int) -> str | None:
     return None
 
 
-def candidates(q: Quantity, db: BusDatabase, rows: int) -> list[Candidate]:
-    """Signals that may carry ``q``, best first."""
+def _has_unit(unit: str | None) -> bool:
+    """Whether ``unit`` is a physical unit (not a count or nothing)."""
+    try:
+        return dimension(unit) not in ("dimensionless", "count")
+    except ConfigError:
+        return bool(unit)
+
+
+def dut_node(db: BusDatabase) -> str:
+    """The node that receives the most signals: in a controller's own database, the
+    controller ("" when no signal names a receiver)."""
+    counts: dict[str, int] = {}
+    for m in db.db.messages:
+        for sig in m.signals:
+            for node in sig.receivers:
+                counts[node] = counts.get(node, 0) + 1
+    return max(sorted(counts), key=lambda n: counts[n]) if counts else ""
+
+
+def candidates(q: Quantity, db: BusDatabase, rows: int, dut: str = "") -> list[Candidate]:
+    """Signals that may carry ``q``, best first (``dut``: the DUT's node, for direction)."""
     names = {m.name for m in db.db.messages}
-    want = _words(q.name)
+    want = _words(q.name) - {"dut"}
     want_syn = _expand(want)
     out: dict[tuple[str, str], Candidate] = {}
     for m in db.db.messages:
+        if dut and m.senders:
+            sent_by_dut = dut in m.senders
+            if sent_by_dut != (q.direction == "from_dut"):
+                continue                       # the other direction's frame
         template = _row_template(m.name, names, rows) if q.per_row else None
         if q.per_row and template and template.replace("{row}", "1") != m.name:
             continue                           # one family member speaks for all
+        signal_names = {s.name for s in m.signals}
         for sig in m.signals:
             if sig.is_multiplexer:
                 continue
-            have = _words(sig.name) | _words(m.name if not template else
-                                             template.replace("{row}", ""))
-            comment = _words(sig.comment or "")
-            score = 2.0 * len(want & have) + 1.0 * len((want_syn - want) & have) \
-                + 0.5 * len(want & comment)
-            if score <= 0:
+            sig_template = _row_template(sig.name, signal_names, rows) if not template else None
+            if sig_template and (not q.per_row
+                                 or sig_template.replace("{row}", "1") != sig.name):
+                continue                       # a row's signal: per-row quantities only
+            if q.kind in ("flag", "enum", "counter") and _has_unit(sig.unit):
                 continue
+            own = _words((sig_template or sig.name).replace("{row}", ""))
+            if not own & want_syn:
+                continue                       # the signal's own name must say something
+            have = own | _words(template.replace("{row}", "") if template else m.name)
+            comment = _words(sig.comment or "")
+            score = 2.0 * len(want & own) + 1.0 * len(want & (have - own)) \
+                + 0.5 * len((want_syn - want) & have) + 0.5 * len(want & comment)
             unit, reason = sig.unit or None, "name"
             if q.kind == "number":
                 try:
@@ -120,12 +150,18 @@ def candidates(q: Quantity, db: BusDatabase, rows: int) -> list[Candidate]:
             mux, mux_rows = "", ()
             if q.per_row and not template and sig.multiplexer_ids:
                 mux = sig.multiplexer_signal or ""
-                mux_rows = tuple(sorted(sig.multiplexer_ids))[:rows]
+                if sig_template:
+                    mux_rows = tuple(
+                        (m.get_signal_by_name(sig_template.replace("{row}", str(r)))
+                         .multiplexer_ids or [0])[0] for r in range(1, rows + 1))
+                else:
+                    mux_rows = tuple(sorted(sig.multiplexer_ids))[:rows]
                 score += 0.5
             elif q.per_row and not template:
                 score -= 2.0                      # one signal for every row: unlikely
-            out[(template or m.name, sig.name)] = Candidate(
-                template or m.name, sig.name, score, bool(template), mux, mux_rows, unit,
+            name = sig_template or sig.name
+            out[(template or m.name, name)] = Candidate(
+                template or m.name, name, score, bool(template), mux, mux_rows, unit,
                 reason)
     return sorted(out.values(), key=lambda c: (-c.score, c.message, c.signal))
 
@@ -163,13 +199,13 @@ def write_binding(database: Path, contract: Contract, *, relative_to: Path | Non
              "# ([wiring] database and binding; docs/guide/binding.md, quantities in "
              "docs/reference/rig-quantities.md).",
              f'rig = "{contract.rig}"', f'database = "{shown}"']
-    senders = sorted({s for m in db.db.messages for s in m.senders})
-    lines.append(f'# dut_node = "..."   # TODO: the DUT\'s node among {", ".join(senders)}'
-                 if senders else '# dut_node = "..."')
+    dut = dut_node(db)
+    lines.append(f'dut_node = "{dut}"   # the node that receives the most signals'
+                 if dut else '# dut_node = "..."   # TODO: the DUT\'s node in the database')
     lines += ["", "[quantities]"]
     used: dict[tuple[str, str], str] = {}
     for q in contract.quantities:
-        found = candidates(q, db, contract.rows)
+        found = candidates(q, db, contract.rows, dut)
         fresh = [c for c in found if (c.message, c.signal) not in used]
         need = " (required)" if q.required else ""
         if not fresh:

@@ -19,8 +19,9 @@ A binding file (TOML) names a database and, per rig quantity, its carrier::
 Carriers:
 
 * ``signal``: ``message`` (with ``{row}`` for one message per row, rows from 1) and
-  ``signal`` of the database; ``unit`` when the database declares none for the signal (a unit
-  of :mod:`hil.contract.units`; the value is converted); ``values`` maps the quantity's values
+  ``signal`` of the database (``{row}`` too, for per-row signals of one message); ``unit``
+  when the database declares none for the signal (a unit of :mod:`hil.contract.units`; the
+  value is converted); ``values`` maps the quantity's values
   to the signal's (an enum, or a flag carried as an enum value); ``multiplexer`` and ``rows``
   for a multiplexed message; ``cycle_ms`` overrides the database's cycle time.
 * ``ddi``: ISO 11783-10 process data, a device element and a DDI of the ISO 11783-11 table
@@ -64,7 +65,8 @@ class SignalCarrier:
     message : str
         The message's name; ``{row}`` in it stands for the row (from 1).
     signal : str
-        The signal's name.
+        The signal's name; ``{row}`` in it stands for the row (a multiplexed message whose
+        rows have signals of their own, ``Flow_R1`` ... ``Flow_R4``).
     unit : str or None, optional
         The signal's unit when the database declares none.
     values : mapping of int to int, optional
@@ -95,6 +97,15 @@ class SignalCarrier:
                                   "is not per row", key="message")
             return self.message.replace(ROW_PLACEHOLDER, str(row))
         return self.message
+
+    def signal_for(self, row: int | None) -> str:
+        """The signal's name for ``row`` (``{row}`` in it stands for the row, from 1)."""
+        if ROW_PLACEHOLDER in self.signal:
+            if row is None:
+                raise ConfigError(f"{self.signal!r} has {ROW_PLACEHOLDER} but the quantity "
+                                  "is not per row", key="signal")
+            return self.signal.replace(ROW_PLACEHOLDER, str(row))
+        return self.signal
 
     def mux_value(self, row: int | None) -> int | None:
         """The multiplexer's value for ``row`` (None without a multiplexer)."""

@@ -156,21 +156,25 @@ def _check_signal(contract: Contract, q: Quantity, carrier: SignalCarrier, db: B
     if "{row}" in carrier.message and not q.per_row:
         return [Problem(src, f"{key}.message", f"{q.name} is not per row: {{row}} has no value",
                         "name one message")]
-    seen: set[str] = set()
+    if "{row}" in carrier.signal and not q.per_row:
+        return [Problem(src, f"{key}.signal", f"{q.name} is not per row: {{row}} has no value",
+                        "name one signal")]
+    seen: set[tuple[str, str]] = set()
     for row in _rows(contract, q):
         name = carrier.message_for(row)
-        if name in seen:
+        if (name, carrier.signal_for(row)) in seen:
             continue
-        seen.add(name)
+        seen.add((name, carrier.signal_for(row)))
         if not db.has_message(name):
             out.append(Problem(src, f"{key}.message", f"{db.path.name} has no message {name!r}",
                                "a message of the database: " + _names(db)))
             continue
         message = db.message(name)
         try:
-            sig = message.get_signal_by_name(carrier.signal)
-        except KeyError:
-            out.append(Problem(src, f"{key}.signal", f"{name} has no signal {carrier.signal!r}",
+            sig = message.get_signal_by_name(carrier.signal_for(row))
+        except (KeyError, ConfigError):
+            out.append(Problem(src, f"{key}.signal",
+                               f"{name} has no signal {_for_row(carrier.signal, row)!r}",
                                "one of " + ", ".join(s.name for s in message.signals)))
             continue
         if carrier.multiplexer:
@@ -186,7 +190,9 @@ def _check_signal(contract: Contract, q: Quantity, carrier: SignalCarrier, db: B
                                    f"{name}.{mux.name} is not a multiplexer", ""))
             ids = sig.multiplexer_ids
             if ids is not None:
-                wrong = [r for r in carrier.rows if r not in ids]
+                wanted = [carrier.mux_value(row)] if "{row}" in carrier.signal \
+                    else list(carrier.rows)
+                wrong = [r for r in wanted if r not in ids]
                 if wrong:
                     out.append(Problem(src, f"{key}.rows",
                                        f"{name}.{sig.name} is in multiplexed frames "
@@ -203,6 +209,8 @@ def _check_fit(q: Quantity, carrier: SignalCarrier, sig: Any, where: str, key: s
                src: str) -> list[Problem]:
     """Unit, range and resolution of one signal against its quantity."""
     lo, hi, step = signal_span(sig)
+    if q.kind == "counter":
+        return []                     # a rolling counter wraps at the signal's width
     if carrier.values:
         outside = sorted(v for v in carrier.values.values() if not lo <= v <= hi)
         if outside:
@@ -369,10 +377,13 @@ def _fill_notes(contract: Contract, binding: Binding, db: BusDatabase,
         for row in _rows(contract, q):
             message = carrier.message_for(row)
             if db.has_message(message):
-                bound.setdefault(message, set()).update({carrier.signal, carrier.multiplexer})
+                bound.setdefault(message, set()).update({carrier.signal_for(row),
+                                                         carrier.multiplexer})
     out = []
     for message, signals in bound.items():
         for sig in db.message(message).signals:
+            if sig.multiplexer_ids is not None:
+                continue                        # sent only with its multiplexer value
             if sig.name not in signals and sig.raw_initial is None:
                 out.append(Problem(src, "quantities", f"{message}.{sig.name} carries no rig "
                                    "quantity and has no start value: the rig sends raw 0",
@@ -466,3 +477,7 @@ def _same_ids(src: str, database: Path, binding: Binding, contract: Contract) ->
                                f"{database.name} --rig {contract.rig}` writes one) or use the "
                                "rig's ids"))
     return out
+
+
+def _for_row(signal: str, row: int | None) -> str:
+    return signal.replace("{row}", str(row)) if row is not None else signal

@@ -38,7 +38,7 @@ from hil.errors import ConfigError, FrameError
 
 __all__ = ["ContractCodec", "signal_unit"]
 
-_IDENTITY, _SCALE, _MAP = 0, 1, 2
+_IDENTITY, _SCALE, _MAP, _WRAP = 0, 1, 2, 3
 
 
 @dataclass(frozen=True)
@@ -58,6 +58,8 @@ class _Entry:
             return value
         if self.how == _SCALE:
             return value * self.factor
+        if self.how == _WRAP:
+            return int(value) % int(self.factor)
         raw = self.to_signal.get(int(value))
         if raw is None:
             raise FrameError(f"{self.quantity}: value {value!r} has no signal value in the "
@@ -69,6 +71,8 @@ class _Entry:
             return value
         if self.how == _SCALE:
             return value / self.factor
+        if self.how == _WRAP:
+            return value
         return self.to_quantity.get(int(value), value)
 
 
@@ -169,8 +173,8 @@ class ContractCodec:
                message: Any) -> _Entry:
         key = f"quantities.{quantity.name}"
         try:
-            sig = message.get_signal_by_name(carrier.signal)
-        except KeyError:
+            sig = message.get_signal_by_name(carrier.signal_for(row))
+        except (KeyError, ConfigError):
             raise ConfigError(f"{message.name} has no signal {carrier.signal!r} (signals: "
                               f"{', '.join(s.name for s in message.signals)})",
                               **self._where(f"{key}.signal")) from None
@@ -185,6 +189,11 @@ class ContractCodec:
             return _Entry(quantity.name, row, sig.name, _MAP, 1.0, dict(carrier.values),
                           {v: k for k, v in carrier.values.items()})
         unit = signal_unit(carrier, sig)
+        if quantity.kind == "counter" and not sig.conversion.is_float:
+            # a rolling counter wraps at the signal's width (a 4-bit alive counter, say)
+            modulus = (1 << sig.length) if not sig.is_signed else (1 << (sig.length - 1))
+            if modulus <= quantity.maximum:
+                return _Entry(quantity.name, row, sig.name, _WRAP, float(modulus), {}, {})
         if quantity.kind in ("flag", "enum", "counter") and unit is None:
             return _Entry(quantity.name, row, sig.name, _IDENTITY, 1.0, {}, {})
         try:

@@ -416,7 +416,7 @@ def _q(name: str, unit: str, direction: str, lo: float, hi: float, res: float, t
 def _quantities() -> tuple[Any, ...]:
     return (
         # the tractor ECU's ground-based speed (PGN 65097)
-        _q("ground_speed", "m/s", "to_dut", 0, 64.255, 0.001,
+        _q("ground_speed", "m/s", "to_dut", 0, 20, 0.001,
            "true ground speed (PGN 65097); the controller holds the drive at standstill",
            required=True),
         _q("ground_distance", "m", "to_dut", 0, 4211081.215, 0.001, "ground distance"),
