@@ -752,3 +752,76 @@ def test_readme_main_job(checkout: Path) -> None:
     line = ShellLine("scripts/qualify.sh", 0, quoted.group(1), argv, "exit 0")
     assert result.returncode == 0, explain(line, argv, result)
     check_outputs(line, argv, checkout, result)
+
+
+# ---------------------------------------------------------------------------------------------
+# the "Writing your own controller" guides (issue 31.3): their frame tables are the databases'
+
+#: guide -> (its rig's DBC, the DUT's node in it, ids the DBC gives the DUT that the page says
+#: the rig never sends, the CiA 301 / EDS ids the page adds to the DBC's)
+CONTROLLER_GUIDES = {
+    "docs/guide/writing-a-fertilizer-controller.md": (
+        "plant_emulators/fertilizer/db/fertilizer.dbc", "Controller",
+        {0x000},                                 # the fertilizer rig sends no NMT command
+        {0x080}),                                # SYNC
+    "docs/guide/writing-a-depth-controller.md": (
+        "plant_emulators/sowing_depth/db/sowing_depth.dbc", "DepthController", set(),
+        # SYNC, NMT, the DUT's heartbeat; the drive's (node 2) EMCY, SDO, heartbeat, and its
+        # PDOs as firmware/generated/servo_cylinder_pdo.dbc has them from its EDS
+        {0x080, 0x000, 0x701, 0x082, 0x582, 0x602, 0x702, 0x182, 0x282, 0x382, 0x202, 0x302,
+         0x402}),
+}
+GUIDE_ID = re.compile(r"`(0x[0-9A-Fa-f]+)`(?:-`(0x[0-9A-Fa-f]+)`)?")
+
+
+def guide_table_ids(doc: str, heading: str) -> set[int]:
+    """The identifiers in the first column of the table under ``heading`` (ranges expanded)."""
+    text = (REPO / doc).read_text(encoding="utf-8")
+    section = text.split(heading, 1)[1].split("\n#", 1)[0]
+    ids: set[int] = set()
+    for row in section.splitlines():
+        if row.startswith("| `"):
+            for first, last in GUIDE_ID.findall(row.split("|")[1]):
+                ids.update(range(int(first, 16), int(last or first, 16) + 1))
+    return ids
+
+
+@pytest.mark.parametrize("doc", sorted(CONTROLLER_GUIDES))
+def test_controller_guide_frames_are_the_databases(doc: str) -> None:
+    import cantools
+
+    dbc, node, not_sent, canopen = CONTROLLER_GUIDES[doc]
+    db = cantools.database.load_file(REPO / dbc)
+    received = guide_table_ids(doc, "### What the controller receives")
+    sent = guide_table_ids(doc, "### What the controller must send")
+    assert received and sent, f"{doc}: no frame tables found"
+    dut_sends = {m.frame_id for m in db.messages if node in m.senders}
+    dut_receives = {m.frame_id for m in db.messages if node in m.receivers} - not_sent
+    assert dut_sends <= sent, (f"{doc}: the DBC has the DUT send "
+                               f"{sorted(hex(i) for i in dut_sends - sent)}, the page does not")
+    assert dut_receives <= received, (
+        f"{doc}: the DBC has the DUT receive {sorted(hex(i) for i in dut_receives - received)}, "
+        "the page does not")
+    unknown = (received | sent) - {m.frame_id for m in db.messages} - canopen
+    assert not unknown, f"{doc}: ids on the page that no database has: {sorted(map(hex, unknown))}"
+    if node == "DepthController":                # the drive's PDOs, from its EDS
+        pdo = cantools.database.load_file(REPO / "firmware/generated/servo_cylinder_pdo.dbc")
+        assert {m.frame_id for m in pdo.messages} <= canopen
+
+
+def test_example_controller_is_written_without_agrihil() -> None:
+    """The example controller of the fertilizer guide uses no agrihil code: no header of
+    firmware/, no generated codec, and its profile builds only its own source."""
+    from hil.dut.profile import load_profile
+
+    folder = REPO / "docs/examples/my-fertilizer-controller"
+    source = (folder / "my_fert.c").read_text(encoding="utf-8")
+    includes = set(re.findall(r'#include\s*[<"]([^>"]+)', source))
+    standard = {"errno.h", "math.h", "netdb.h", "netinet/in.h", "netinet/tcp.h", "signal.h",
+                "stdbool.h", "stdint.h", "stdio.h", "stdlib.h", "string.h", "sys/socket.h",
+                "unistd.h"}
+    assert includes <= standard, f"not a C library or POSIX header: {includes - standard}"
+    profile = load_profile(folder / "fertilizer-my-controller-firmware.toml")
+    assert profile.build is not None
+    assert list(profile.build.sources) == ["{profile_dir}/my_fert.c"]
+    assert not any("firmware" in arg for arg in profile.build.command)
