@@ -11,6 +11,7 @@ WGS84 longitude/latitude (RFC 7946).
 ``boom``          sections' widths and offsets (:class:`Boom`)
 ``coverage``      coverage and the section on/off rule (:class:`SectionControl`)
 ``as_applied``    what was applied, and the as-applied map (:class:`AsAppliedRecord`)
+``task``          what a TC asks each period: set-points and section states (:class:`FieldTask`)
 ``drive``         the reference run: a path driven with an ideal implement (:func:`drive_field`)
 ``taskdata``      ISO 11783-10 TASKDATA grids (types 1, 2) as maps (:func:`load_taskdata_grid`)
 ================  ==========================================================================
@@ -37,15 +38,18 @@ from hil.isobus.field.prescription import (
     load_prescription,
     prescription_from_geojson,
 )
+from hil.isobus.field.task import Command, FieldTask
 from hil.isobus.field.taskdata import load_taskdata_grid
 
 __all__ = [
     "AsAppliedArrays",
     "AsAppliedRecord",
     "Boom",
+    "Command",
     "Coverage",
     "Field",
     "FieldPath",
+    "FieldTask",
     "ImplementModel",
     "Leg",
     "LocalFrame",

@@ -20,9 +20,9 @@ import numpy as np
 
 from hil.isobus.field.as_applied import AsAppliedRecord
 from hil.isobus.field.boom import Boom
-from hil.isobus.field.coverage import SectionControl
 from hil.isobus.field.path import Field
 from hil.isobus.field.prescription import PrescriptionMap
+from hil.isobus.field.task import FieldTask
 
 __all__ = ["ImplementModel", "drive_field"]
 
@@ -49,42 +49,36 @@ def drive_field(fld: Field, boom: Boom, rx_map: PrescriptionMap, *, dt_s: float 
                 overlap_tolerance_pct: float = 50.0) -> AsAppliedRecord:
     """Drive ``fld.path`` to its end; return what was applied, per sample and section.
 
-    The set-point sent for a section at time ``t`` is the map's rate where the section will be
-    ``rate_delay_s`` later (the TC's look-ahead for the implement's rate latency).
+    The TC side is a :class:`~.task.FieldTask` whose rate look-ahead is the implement's
+    ``rate_delay_s``: the set-point sent at ``t`` is the map's rate where the section will be
+    when the implement applies it.
     """
     imp = implement or ImplementModel()
-    sc = SectionControl(boom, fld.work_area, overlap_tolerance_pct=overlap_tolerance_pct)
-    times = np.arange(0.0, fld.path.duration_s + dt_s, dt_s)
+    task = FieldTask(fld, rx_map, boom, overlap_tolerance_pct=overlap_tolerance_pct,
+                     rate_lookahead_s=imp.rate_delay_s)
     n_sec = len(boom.sections)
-    # pending switches: (time it takes effect, section, state)
-    pending: list[tuple[float, int, bool]] = []
+    pending: list[tuple[float, int, bool]] = []   # (time it takes effect, section, state)
     actual = [False] * n_sec
     commanded = [False] * n_sec
     rate = np.zeros(n_sec)
-    # the set-points, kept so the pure delay can be played back
-    setpoints: list[np.ndarray] = []
-    record = AsAppliedRecord(boom, fld.frame, rx_map.unit.name)
+    setpoints: list[np.ndarray] = []              # kept to play the pure delay back
     alpha = 1.0 - math.exp(-dt_s / imp.rate_time_constant_s) if imp.rate_time_constant_s else 1.0
     delay_steps = round(imp.rate_delay_s / dt_s)
-    for t in times:
-        new = sc.update(float(t), fld.path.pose)
+    for t in np.arange(0.0, fld.path.duration_s + dt_s, dt_s):
+        cmd = task.command(float(t))
         for j in range(n_sec):
-            if new[j] != commanded[j]:
-                lag = boom.turn_on_s if new[j] else boom.turn_off_s
-                pending.append((t + lag * imp.switch_delay_scale - 1e-9, j, new[j]))
-                commanded[j] = new[j]
+            if cmd.sections_on[j] != commanded[j]:
+                lag = boom.turn_on_s if cmd.sections_on[j] else boom.turn_off_s
+                pending.append((t + lag * imp.switch_delay_scale - 1e-9, j, cmd.sections_on[j]))
+                commanded[j] = cmd.sections_on[j]
         for item in [p for p in pending if p[0] <= t]:
             pending.remove(item)
             actual[item[1]] = item[2]
-        applying = [True] * n_sec if not imp.obey_sections else list(actual)
-        ahead = fld.path.pose(float(t) + imp.rate_delay_s)
-        _, centres, _ = boom.section_lines(ahead.east_m, ahead.north_m, ahead.heading_deg)
-        setpoints.append(rx_map.rate_at_local(centres[0, :, 0], centres[0, :, 1]))
+        applying = list(actual) if imp.obey_sections else [True] * n_sec
+        setpoints.append(cmd.rates)
         target = setpoints[max(len(setpoints) - 1 - delay_steps, 0)]
         if not imp.follow_map:
             target = np.full(n_sec, imp.fixed_rate)
         rate = rate + alpha * (target - rate)
-        pose = fld.path.pose(float(t))
-        sc.record(pose, applying)
-        record.add(pose, applying, np.where(applying, rate, 0.0))
-    return record
+        task.report(cmd.pose, applying, np.where(applying, rate, 0.0))
+    return task.as_applied
