@@ -1,0 +1,83 @@
+"""``hil isobus serve``: the rig's tractor (TECU and Task Controller) alone on any bus."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+from hil.errors import ConfigError
+
+__all__ = ["add_subparser"]
+
+#: the fertilizer rig's example field and map (plant_emulators/fertilizer/fields/)
+_FIELDS = Path(__file__).resolve().parents[2] / "plant_emulators" / "fertilizer" / "fields"
+DEFAULT_FIELD = _FIELDS / "field-rect.geojson"
+DEFAULT_MAP = _FIELDS / "rates-3zones.geojson"
+
+
+def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    isobus = subparsers.add_parser("isobus", help="the rig's ISOBUS tractor (TECU, Task "
+                                                  "Controller) on its own")
+    sub = isobus.add_subparsers(dest="isobus_command", metavar="ACTION")
+    sub.required = True
+    serve = sub.add_parser(
+        "serve", help="run the tractor ECU and the Task Controller in real time on a bus, "
+                      "driving a field path over a prescription map")
+    serve.add_argument("--bus", required=True,
+                       help="bus spec, e.g. socketcan:can0, socketcand:127.0.0.1:29536:can0")
+    serve.add_argument("--field", type=Path, default=DEFAULT_FIELD, metavar="FILE",
+                       help="field file (GeoJSON: boundary, work area, path legs); default: the "
+                            "fertilizer rig's example field")
+    serve.add_argument("--map", type=Path, default=DEFAULT_MAP, metavar="FILE",
+                       help="prescription map (GeoJSON polygons with a rate); default: the "
+                            "fertilizer rig's three-zone map")
+    serve.add_argument("--no-map", action="store_true",
+                       help="send no rate set-point (TC-BAS and section control only)")
+    serve.add_argument("--duration", type=float, default=math.inf, metavar="S",
+                       help="stop after S seconds of run time (default: until Ctrl-C)")
+    serve.add_argument("--drive-after", type=float, default=10.0, metavar="S",
+                       help="stand still, key on, for S seconds before driving the path, so "
+                            "an implement can connect (default 10)")
+    serve.add_argument("--wheel-slip", type=float, default=0.0, metavar="F",
+                       help="slip of the tractor's driven wheels, 0 <= F < 1: the "
+                            "wheel-based speed over-reads by it (default 0)")
+    serve.add_argument("--out", type=Path, default=Path("isobus-out"), metavar="DIR",
+                       help="where bus.log, tc.jsonl, as-applied.geojson and summary.json go")
+    serve.add_argument("--quiet", action="store_true", help="no line per connection event")
+    serve.set_defaults(func=_serve)
+
+
+def _check(args: argparse.Namespace) -> None:
+    if not (args.duration > 0):
+        raise ConfigError(f"--duration must be > 0 s, got {args.duration}", key="--duration")
+    if not (math.isfinite(args.drive_after) and args.drive_after >= 0):
+        raise ConfigError(f"--drive-after must be >= 0 s, got {args.drive_after}",
+                          key="--drive-after")
+    if not (0.0 <= args.wheel_slip < 1.0):
+        raise ConfigError(f"--wheel-slip must be in [0, 1), got {args.wheel_slip}",
+                          key="--wheel-slip")
+
+
+def _serve(args: argparse.Namespace) -> int:
+    from hil.isobus.field.path import load_field
+    from hil.isobus.field.prescription import load_prescription
+    from hil.isobus.serve import serve
+    from hil.isobus.tractor import Tractor, TractorSetup
+
+    _check(args)
+    field = load_field(args.field)
+    rx = None if args.no_map else load_prescription(args.map, frame=field.frame)
+    tractor = Tractor(TractorSetup(field=field, prescription=rx, drive_after_s=args.drive_after,
+                                   wheel_slip=args.wheel_slip))
+    say = None if args.quiet else (lambda line: print(line, flush=True))
+    if say is not None:
+        say(f"hil isobus serve: TECU 0x80, TC 0xF7 on {args.bus}; path "
+            f"{field.path.duration_s:.0f} s after {args.drive_after:g} s; writing {args.out}/")
+    result = serve(tractor, args.bus, args.out, duration_s=args.duration, console=say)
+    print(f"hil isobus serve: {result.run_time_s:.1f} s, {result.frames} frames, "
+          f"{result.events} TC events, {result.values} values; DDOP "
+          f"{'activated' if result.activated else 'never activated'}"
+          + ("; interrupted" if result.interrupted else ""), file=sys.stderr)
+    return 0

@@ -1,0 +1,332 @@
+"""The emulated tractor: a TECU and a Task Controller driving a field path over a prescription map.
+
+:class:`Tractor` puts the rig's ISOBUS control functions on one
+:class:`~hil.isobus.network.IsobusNetwork` (a rig device, so the same object runs under the
+lockstep clock in a rig and in real time under ``hil isobus serve``):
+
+- the **tractor ECU** (:mod:`hil.isobus.tecu`) reports wheel-based, ground-based and machine
+  selected speed from the path's ground speed; the wheel-based one over-reads by the wheel slip;
+- the **Task Controller** (:mod:`hil.isobus.tc`) takes each implement's device descriptor
+  object pool and, once it is active, sends it
+  - the prescription map's rate where the boom will be after the element's declared set-point
+    latency (DDI 142, when the DDOP has it) as the map's set-point DDI (e.g. DDI 6, mass per
+    area), TC-GEO;
+  - the section states from coverage (:class:`~hil.isobus.field.coverage.SectionControl`, with
+    the turn-on and turn-off times the DDOP declares, DDI 205/206) as the condensed set-point
+    work states (DDI 290-305), and the set-point work state (DDI 289), TC-SC;
+- the **as-applied map**: every ``record_period_s`` the implement's last reported actual rate
+  (the map's actual DDI, e.g. 7) and actual section states (DDI 161-176) at the path's position,
+  which :meth:`Tractor.as_applied` returns as a record for the report and GIS tools.
+
+Which sections a boom has and where they are come from the implement's DDOP (elements of type
+section with their X/Y offsets, DDI 134/135, and widths, DDI 67 or 70); a DDOP without sections
+is treated as one section as wide as its widest working width. Nothing reads a clock: the run
+time arrives through the network's ``tick``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from hil.isobus import ddi as dd
+from hil.isobus import process_data as pd
+from hil.isobus.ddop import ObjectPool
+from hil.isobus.ddop.objects import DeviceElement, ElementType
+from hil.isobus.faults import IsobusFaults
+from hil.isobus.field.as_applied import AsAppliedRecord
+from hil.isobus.field.boom import Boom, Section
+from hil.isobus.field.coverage import SectionControl
+from hil.isobus.field.path import Field, Pose
+from hil.isobus.field.prescription import PrescriptionMap
+from hil.isobus.name import IsobusName
+from hil.isobus.network import IsobusNetwork
+from hil.isobus.tc.server import ServerOptions, TaskControllerServer
+from hil.isobus.tc.setpoints import SetpointRequest
+from hil.isobus.tecu import SpeedSource, TractorEcu, TractorState, add_tecu
+
+__all__ = ["TC_ADDRESS", "TC_NAME", "Tractor", "TractorSetup", "boom_from_ddop"]
+
+TC_FUNCTION = 130
+"""ISO 11783-1 function code of a Task Controller (industry group 2, any device class)."""
+TC_ADDRESS = 0xF7
+"""The Task Controller's preferred address (isobus.md)."""
+TC_NAME = IsobusName(identity_number=0x1EE, manufacturer_code=0, function=TC_FUNCTION,
+                     device_class=0, industry_group=2)
+"""The rig's TC NAME (identity number arbitrary, manufacturer code 0: no manufacturer)."""
+
+#: DDIs the as-applied record reads from what the implement reports
+_ACTUAL_RATE_FOR_SETPOINT = {dd.SETPOINT_MASS_PER_AREA_RATE: dd.ACTUAL_MASS_PER_AREA_RATE,
+                             dd.SETPOINT_VOLUME_PER_AREA_RATE: dd.ACTUAL_VOLUME_PER_AREA_RATE,
+                             dd.SETPOINT_COUNT_PER_AREA_RATE: dd.ACTUAL_COUNT_PER_AREA_RATE}
+_CONDENSED_SETPOINT = range(290, 306)
+_CONDENSED_ACTUAL = range(161, 177)
+
+
+@dataclass(frozen=True)
+class TractorSetup:
+    """What the emulated tractor drives and how.
+
+    Attributes
+    ----------
+    field : Field
+        The field: boundary, work area (the field less its headlands), path.
+    prescription : PrescriptionMap or None
+        The rate map (``None``: the TC sends no rate set-point, TC-BAS/SC only).
+    drive_after_s : float
+        Run time at which the tractor starts down the path (it stands at the path's start
+        before, key on), so an implement can connect first.
+    wheel_slip : float
+        Slip of the tractor's driven wheels (0 <= slip < 1): the wheel-based speed over-reads.
+    speed_source : SpeedSource
+        What the machine selected speed carries.
+    overlap_tolerance_pct : float
+        Share of a section's ground that may be covered already before it is switched off.
+    record_period_s : float
+        How often the as-applied record samples the implement's reports.
+    """
+
+    field: Field
+    prescription: PrescriptionMap | None = None
+    drive_after_s: float = 0.0
+    wheel_slip: float = 0.0
+    speed_source: SpeedSource = SpeedSource.GROUND_BASED
+    overlap_tolerance_pct: float = 50.0
+    record_period_s: float = 0.1
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.drive_after_s) and self.drive_after_s >= 0):
+            raise ValueError(f"drive_after_s must be >= 0 s, got {self.drive_after_s}")
+        if not 0.0 <= self.wheel_slip < 1.0:
+            raise ValueError(f"wheel_slip must be in [0, 1), got {self.wheel_slip}")
+        if not (math.isfinite(self.record_period_s) and self.record_period_s > 0):
+            raise ValueError(f"record_period_s must be > 0 s, got {self.record_period_s}")
+
+
+@dataclass
+class _Implement:
+    """What the tractor keeps of one connected implement (one active DDOP)."""
+
+    pool: ObjectPool
+    boom: Boom
+    sections: list[DeviceElement]
+    control: SectionControl
+    record: AsAppliedRecord | None
+    states_at_s: float = -math.inf
+    actual_rate: dict[int, float] = field(default_factory=dict)
+    actual_states: dict[int, int] = field(default_factory=dict)
+
+
+def boom_from_ddop(pool: ObjectPool) -> tuple[Boom, list[DeviceElement]]:
+    """The boom an implement's DDOP describes, and its section elements left to right.
+
+    Sections are the elements of type section; their X/Y offsets (DDI 134/135, mm) and widths
+    (DDI 67 actual or 70 maximum working width, mm) are read from their properties. The
+    turn-on/turn-off look-ahead times are DDI 205/206 (ms) on any element.
+
+    Raises
+    ------
+    ValueError
+        The pool has no section and no working width, or a section without a width.
+    """
+    sections = [e for e in pool.elements if e.element_type == ElementType.SECTION]
+    turn_on = turn_off = 0.0
+    for element in pool.elements:
+        on = pool.property_value(element.element_number, dd.SC_SETPOINT_TURN_ON_TIME)
+        off = pool.property_value(element.element_number, dd.SC_SETPOINT_TURN_OFF_TIME)
+        turn_on = max(turn_on, (on or 0) / 1000.0)
+        turn_off = max(turn_off, (off or 0) / 1000.0)
+
+    def width_mm(element: DeviceElement) -> int | None:
+        for ddi in (dd.ACTUAL_WORKING_WIDTH, dd.MAXIMUM_WORKING_WIDTH):
+            value = pool.property_value(element.element_number, ddi)
+            if value:
+                return value
+        return None
+
+    if not sections:
+        widths = [w for w in (width_mm(e) for e in pool.elements) if w]
+        if not widths:
+            raise ValueError("the DDOP declares no section and no working width (DDI 67/70)")
+        return Boom((Section(max(widths) / 1000.0, 0.0, 0.0),), turn_on, turn_off), []
+    out = []
+    for element in sections:
+        width = width_mm(element)
+        if not width:
+            raise ValueError(f"section element {element.element_number} (object "
+                             f"{element.object_id}) has no working width (DDI 67 or 70)")
+        x = pool.property_value(element.element_number, dd.DEVICE_ELEMENT_OFFSET_X) or 0
+        y = pool.property_value(element.element_number, dd.DEVICE_ELEMENT_OFFSET_Y) or 0
+        out.append((y, Section(width / 1000.0, y / 1000.0, x / 1000.0), element))
+    out.sort(key=lambda item: item[0])
+    return (Boom(tuple(s for _, s, _ in out), turn_on, turn_off), [e for _, _, e in out])
+
+
+class Tractor:
+    """The tractor side of the bench on one network (see the module docstring).
+
+    Parameters
+    ----------
+    setup : TractorSetup
+        Field, map, slip, timing.
+    faults : IsobusFaults, optional
+        Faults the network injects into the implement's stack.
+    options : ServerOptions, optional
+        What the TC reports in its version message.
+    """
+
+    def __init__(self, setup: TractorSetup, *, faults: IsobusFaults | None = None,
+                 options: ServerOptions | None = None) -> None:
+        self.setup = setup
+        self.network = IsobusNetwork(faults=faults, name="tractor")
+        self.tecu: TractorEcu = add_tecu(self.network, self.truth)
+        tc_cf = self.network.add(TC_NAME, TC_ADDRESS, "TC")
+        self.tc = TaskControllerServer(tc_cf, options=options or _default_options(),
+                                       setpoints=self._setpoint)
+        tc_cf.run(self.tc)
+        tc_cf.run(self)
+        self._implements: dict[int, _Implement] = {}
+        self._next_record_s = 0.0
+        self._values_seen = 0
+
+    # -- the path ------------------------------------------------------------------------------
+
+    def pose(self, time_s: float) -> Pose:
+        """Where the antenna is at run time ``time_s``."""
+        return self.setup.field.path.pose(max(0.0, time_s - self.setup.drive_after_s))
+
+    def truth(self, time_s: float) -> TractorState:
+        """What the TECU reports at ``time_s``."""
+        pose = self.pose(time_s)
+        return TractorState(ground_speed_mps=pose.speed_m_s, wheel_slip=self.setup.wheel_slip,
+                            speed_source=self.setup.speed_source,
+                            implement_start=pose.kind in ("pass", "overlap"),
+                            ground_distance_m=pose.distance_m)
+
+    # -- the TC's set-points -------------------------------------------------------------------
+
+    def _implement(self, address: int) -> _Implement | None:
+        session = self.tc.sessions.get(address)
+        if session is None or session.pool is None:
+            self._implements.pop(address, None)
+            return None
+        known = self._implements.get(address)
+        if known is not None and known.pool is session.pool:
+            return known
+        boom, sections = boom_from_ddop(session.pool)
+        control = SectionControl(boom, self.setup.field.work_area,
+                                 overlap_tolerance_pct=self.setup.overlap_tolerance_pct)
+        unit = self.setup.prescription.unit.name if self.setup.prescription else "rate"
+        record = AsAppliedRecord(boom, self.setup.field.frame, unit)
+        known = _Implement(session.pool, boom, sections, control, record)
+        self._implements[address] = known
+        return known
+
+    def _section_states(self, implement: _Implement, time_s: float) -> tuple[bool, ...]:
+        if implement.states_at_s != time_s:
+            implement.control.update(time_s, self.pose)
+            implement.states_at_s = time_s
+        return implement.control.states
+
+    def _setpoint(self, request: SetpointRequest) -> int | None:
+        implement = self._implement(request.client_address)
+        if implement is None:
+            return None
+        rx = self.setup.prescription
+        if rx is not None and request.ddi == rx.unit.ddi:
+            latency = implement.pool.property_value(request.element,
+                                                    dd.PHYSICAL_SETPOINT_TIME_LATENCY) or 0
+            pose = self.pose(request.time_s + latency / 1000.0)
+            centre = implement.boom.section_lines(pose.east_m, pose.north_m,
+                                                  pose.heading_deg)[1][0]
+            rate = float(rx.rate_at_local(centre[:, 0], centre[:, 1]).mean())
+            return int(rx.setpoint_ddi_value(rate))
+        if request.ddi in _CONDENSED_SETPOINT:
+            states = self._section_states(implement, request.time_s)
+            first = (request.ddi - _CONDENSED_SETPOINT.start) * dd.SECTIONS_PER_CONDENSED_DDI
+            chunk = [1 if s else 0 for s in states[first:first + dd.SECTIONS_PER_CONDENSED_DDI]]
+            chunk += [3] * (dd.SECTIONS_PER_CONDENSED_DDI - len(chunk))
+            return dd.pack_condensed_work_state(chunk)
+        if request.ddi == dd.SETPOINT_WORK_STATE:
+            return 1 if self.pose(request.time_s).kind in ("pass", "overlap") else 0
+        return None
+
+    # -- the as-applied record (an application on the TC's function) ---------------------------
+
+    def next_due(self, now_s: float) -> float:
+        """When the as-applied record samples next."""
+        return self._next_record_s
+
+    def tick(self, now_s: float) -> None:
+        """Read the implement's new reports and sample the as-applied record when due."""
+        for value in self.tc.values[self._values_seen:]:
+            implement = self._implements.get(value.address)
+            if implement is None:
+                continue
+            actual = _ACTUAL_RATE_FOR_SETPOINT.get(
+                self.setup.prescription.unit.ddi if self.setup.prescription else -1)
+            if value.ddi == actual:
+                implement.actual_rate[value.element] = float(value.value)
+            elif value.ddi in _CONDENSED_ACTUAL:
+                implement.actual_states[value.ddi] = value.value & 0xFFFFFFFF
+        self._values_seen = len(self.tc.values)
+        if now_s < self._next_record_s:
+            return
+        self._next_record_s = now_s + self.setup.record_period_s
+        pose = self.pose(now_s)
+        for implement in self._implements.values():
+            applying = self._applying(implement)
+            implement.control.record(pose, applying)
+            if implement.record is not None:
+                rate = self._actual_rate(implement)
+                implement.record.add(_Timed(now_s, pose), applying,
+                                     [rate] * len(implement.boom.sections))
+
+    def _applying(self, implement: _Implement) -> list[bool]:
+        n = len(implement.boom.sections)
+        if not implement.actual_states:
+            return list(implement.control.states)
+        out = []
+        for j in range(n):
+            ddi_index, slot = divmod(j, dd.SECTIONS_PER_CONDENSED_DDI)
+            packed = implement.actual_states.get(_CONDENSED_ACTUAL.start + ddi_index)
+            state = dd.unpack_condensed_work_state(packed)[slot] if packed is not None else 0
+            out.append(state == 1)
+        return out
+
+    def _actual_rate(self, implement: _Implement) -> float:
+        rx = self.setup.prescription
+        if rx is None or not implement.actual_rate:
+            return 0.0
+        raw = max(implement.actual_rate.values())
+        return raw / rx.unit.ddi_per_unit
+
+    # -- results -------------------------------------------------------------------------------
+
+    def as_applied(self, address: int | None = None) -> AsAppliedRecord | None:
+        """The as-applied record of the implement at ``address`` (the only one if ``None``)."""
+        if address is None:
+            if len(self._implements) != 1:
+                return None
+            return next(iter(self._implements.values())).record
+        implement = self._implements.get(address)
+        return implement.record if implement else None
+
+
+@dataclass(frozen=True)
+class _Timed:
+    """A pose stamped with the run time (the path's own time starts later)."""
+
+    t_s: float
+    pose: Pose
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self.pose, name)
+
+
+def _default_options() -> ServerOptions:
+    """A TC-BAS + TC-GEO + TC-SC server with one boom of up to 16 sections."""
+    options = (pd.VersionOption.DOCUMENTATION
+               | pd.VersionOption.TC_GEO_WITH_POSITION_BASED_CONTROL
+               | pd.VersionOption.IMPLEMENT_SECTION_CONTROL)
+    return ServerOptions(options=int(options), booms=1, sections=16, channels=1)
