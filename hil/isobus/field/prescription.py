@@ -96,9 +96,13 @@ class PrescriptionMap:
     frame: LocalFrame
     source: str = "<memory>"
     _tree: shapely.STRtree = field(init=False, repr=False, compare=False)
+    _rates: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "_tree", shapely.STRtree([z.local for z in self.zones]))
+        # the zones' rates, then the default (index -1 of a lookup picks it)
+        object.__setattr__(self, "_rates",
+                           np.array([z.rate for z in self.zones] + [self.default_rate]))
 
     def zone_index_local(self, east_m: ArrayLike, north_m: ArrayLike) -> np.ndarray:
         """Position in :attr:`zones` of the zone under each plane point, -1 outside all."""
@@ -119,9 +123,7 @@ class PrescriptionMap:
 
     def rate_at_local(self, east_m: ArrayLike, north_m: ArrayLike) -> np.ndarray:
         """Rate (map unit) at plane points (m): the zone's, or the default outside every zone."""
-        idx = self.zone_index_local(east_m, north_m)
-        rates = np.array([z.rate for z in self.zones] + [self.default_rate])
-        return rates[idx]  # -1 picks the default, appended last
+        return self._rates[self.zone_index_local(east_m, north_m)]
 
     def rate_at(self, lon_deg: ArrayLike, lat_deg: ArrayLike) -> np.ndarray:
         """Rate (map unit) at WGS84 points (degrees)."""
