@@ -26,8 +26,11 @@ applied (inside the work area, not already covered: ``needed_ground``), the metr
 ground that did not need it (**overlap**) and the metres not applied where it did (**skip**),
 and each switch's position error: every on/off edge of the needed signal matched to the
 nearest edge of the same direction in what the section did, within ``search_m`` (signed, +
-late; a switch that never came reads ``inf``). Edges where the work-area boundary is crossed
-are **headland** switches, the others **coverage** switches (over an earlier pass).
+late; a switch that never came reads ``inf``, one made far too early ``-inf``). Edges where the
+work-area boundary is crossed are **headland** switches, the others **coverage** switches (over
+an earlier pass). The overlap and skip totals integrate every sample; the per-kind sums add up
+the switch events only (a section that is never needed on a pass, and applies on it all the
+same, counts in the totals but has no event).
 
 >>> import numpy as np
 >>> d = np.arange(0.0, 20.0, 0.1)[:, None]                  # one section, 0.1 m samples
@@ -277,7 +280,8 @@ class SwitchEvent(DictMixin):
     at_m: float
     """Where it should have switched, along the section's track."""
     error_m: float
-    """Where it did, minus ``at_m`` (+ late); inf if it did not within ``search_m``."""
+    """Where it did, minus ``at_m`` (+ late); +-inf if it did not within ``search_m`` (-inf: it
+    was already in the new state, +inf: it stayed in the old one)."""
     overlap_m: float
     """Metres applied on ground that did not need it because of this switch."""
     skip_m: float
@@ -360,8 +364,11 @@ def section_switching(distance_m: ArrayLike, applying: ArrayLike, needed: ArrayL
                     late, early = max(0.0, err), max(0.0, -err)
                     ov, sk = (early, late) if direction == "on" else (late, early)
                 else:
-                    err = math.inf
-                    ov, sk = (0.0, math.inf) if direction == "on" else (math.inf, 0.0)
+                    # no such switch nearby: the section was already in the new state (switched
+                    # far too early) or stayed in the old one (far too late, or never)
+                    early = bool(on[k, j]) == (direction == "on")
+                    err = -math.inf if early else math.inf
+                    ov, sk = ((math.inf, 0.0) if bool(on[k, j]) else (0.0, math.inf))
                 events.append(SwitchEvent(j, kind, direction, at, err, ov, sk))
             spurious += len(free)
     worst = max((abs(e.error_m) for e in events), default=math.nan)

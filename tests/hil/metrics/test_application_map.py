@@ -172,6 +172,10 @@ def test_never_switching_sections_fails() -> None:
     # 2 sections x 2 headlands of 10 m (the last sample holds no distance) + 20 m overlap
     assert r.overlap_m == pytest.approx(2 * 2 * 10.0 + 20.0 - 2 * 0.1)
     assert r.worst_error_m == math.inf and r.coverage_overlap_m == math.inf
+    # on all along: every "on" came far too early, every "off" never; all of it overlap
+    assert {(e.direction, e.error_m) for e in r.events} == {("on", -math.inf),
+                                                            ("off", math.inf)}
+    assert r.headland_skip_m == 0.0 and r.coverage_skip_m == 0.0
     assert r.overlap_m > SWITCH_LIMIT_M
 
 
@@ -193,6 +197,14 @@ def test_early_switching_is_a_negative_error_and_extra_switches_are_spurious() -
     r = section_switching(DIST, flicker, NEEDED)
     assert all(e.error_m == pytest.approx(-0.5) and e.kind == "coverage" for e in r.events)
     assert r.spurious_switches == 2
+
+
+def test_sections_that_never_switch_on_skip() -> None:
+    r = section_switching(DIST, ~ON, NEEDED, inside_work_area=INSIDE)
+    assert {(e.direction, e.error_m) for e in r.events} == {("on", math.inf),
+                                                            ("off", -math.inf)}
+    assert r.headland_skip_m == math.inf and r.headland_overlap_m == 0.0
+    assert r.skip_m == pytest.approx(100.0 + 80.0, abs=0.11) and r.overlap_m == 0.0
 
 
 def test_docstring_example() -> None:
