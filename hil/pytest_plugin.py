@@ -52,6 +52,8 @@ from hil.dut.profile import DutProfile, load_profile
 from hil.errors import ConfigError, HilError
 from hil.limits import MEASUREMENTS, default_limit, known_measurement
 from hil.measurements import Measurement, Outcome
+from hil.qualification.console import REPORT_ERROR, QualificationConsole
+from hil.qualification.verdict import session_verdict
 from hil.record.atomic import write_json_atomic
 from hil.record.recorder import versions
 from hil.rig import Rig, RunOptions, RunResult, load_rig, run_scenario
@@ -154,6 +156,7 @@ def pytest_configure(config: pytest.Config) -> None:
             rig_overrides=_rig_overrides(profile, config.getoption("--hil-rig-override")),
             record_mode=config.getoption("--hil-record"))
         config.pluginmanager.register(session, "agrihil-qualification")
+        config.pluginmanager.register(QualificationConsole(session, config), "agrihil-console")
         config.stash[_SESSION] = session
 
 
@@ -269,7 +272,6 @@ class QualificationSession:
     runs_of_test: dict[str, list[RunResult]] = field(default_factory=dict)
     #: tests failed because their DUT stopped (node id -> "the DUT stopped at t = … s")
     dut_failures: dict[str, str] = field(default_factory=dict)
-    _config: pytest.Config | None = None
     #: a setup problem that ends the session (a physical ECU that is not on the bus)
     setup_error: str = ""
 
@@ -553,9 +555,10 @@ class QualificationSession:
                      + (f" - {m.note}" if m.note else "") for m in bad]
             report.longrepr = "measurements out of limits:\n  " + "\n  ".join(lines)
 
-    @pytest.hookimpl(trylast=True)     # after the terminal's own PASSED/FAILED
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
-        """Log the test's outcome for the record and, in verbose runs, print its measurements.
+        """Log the test's outcome for the record.
+
+        The console prints it (:mod:`hil.qualification.console`).
 
         Parameters
         ----------
@@ -563,25 +566,6 @@ class QualificationSession:
             The report of one phase of a test.
         """
         self._log_test(report)
-        if report.when == "call":
-            self._print_measurements(report)
-
-    def _print_measurements(self, report: pytest.TestReport) -> None:
-        """Print the test's control measurements and one line for its bus conformance.
-
-        Verbose runs only (``hil qualify``); every check with ``-vv``, the failed ones always.
-        """
-        from hil.console import test_lines
-
-        config = self._config
-        terminal = config.pluginmanager.get_plugin("terminalreporter") if config else None
-        if terminal is None or config is None or config.get_verbosity() < 1:
-            return
-        terminal.ensure_newline()
-        mine = [m for m in self.measurements if m["test"] == report.nodeid]
-        # -vv (pytest) prints every bus conformance check; -v one line for them
-        for line, bad in test_lines(mine, verbose=config.get_verbosity() >= 2):
-            terminal.write_line("    " + line, red=bad)
 
     def _log_test(self, report: pytest.TestReport) -> None:
         if report.when == "call" or (report.when == "setup" and report.outcome != "passed"):
@@ -601,7 +585,6 @@ class QualificationSession:
             The pytest session.
         """
         self.planned = [item.nodeid for item in session.items]
-        self._config = session.config
 
     def pytest_keyboard_interrupt(self, excinfo: Any) -> None:
         """Mark the session interrupted (SIGINT or SIGTERM), so its record says so.
@@ -637,31 +620,7 @@ class QualificationSession:
         try:
             write_html(self.report_dir)
         except Exception as exc:  # the record is written; say loudly the page is not
-            session.config.stash[_REPORT_ERROR] = f"report.html not written: {exc}"
-
-    def pytest_terminal_summary(self, terminalreporter: Any) -> None:
-        """Print the verdict, the one-screen summary and where the record is.
-
-        Parameters
-        ----------
-        terminalreporter : TerminalReporter
-            pytest's terminal reporter.
-        """
-        from hil.console import summary_lines
-
-        error = terminalreporter.config.stash.get(_REPORT_ERROR, None)
-        verdict = self._verdict()
-        terminalreporter.write_sep("=", f"agrihil qualification of {self.profile.name}: "
-                                        f"{verdict.upper()}")
-        not_run = [n for n in self.planned if n not in self.completed_tests()]
-        for line in summary_lines(self.measurements, self.tests, not_run=not_run):
-            terminalreporter.write_line(line)
-        # hil qualify writes into a staging directory and moves the result into its parent
-        shown = (self.report_dir.parent if self.report_dir.name.startswith(".qualify-")
-                 else self.report_dir)
-        terminalreporter.write_line(f"record: {shown / 'record.json'}")
-        if error:
-            terminalreporter.write_line(f"agrihil: ERROR: {error}", red=True)
+            session.config.stash[REPORT_ERROR] = f"report.html not written: {exc}"
 
     # --- the record ----------------------------------------------------------------------------
     def completed_tests(self) -> set[str]:
@@ -674,30 +633,18 @@ class QualificationSession:
             return False
         return set(self.planned) <= self.completed_tests()
 
-    def _verdict(self, exitstatus: int | None = None) -> str:
-        if self.setup_error:
-            return "error"
-        if not self.complete(exitstatus):
-            stopped_on_failure = (not self.interrupted
-                                  and exitstatus != pytest.ExitCode.INTERRUPTED
-                                  and any(t["outcome"] == "failed" for t in self.tests))
-            # never a pass: some selected tests did not run (a session stopped at its first
-            # failure, pytest -x, is a fail, though incomplete)
-            return "fail" if stopped_on_failure else "interrupted"
-        if self.invalid_bench:
-            return "invalid-bench"
-        if exitstatus in (pytest.ExitCode.INTERRUPTED, pytest.ExitCode.INTERNAL_ERROR,
-                          pytest.ExitCode.USAGE_ERROR):
-            return "error"
-        if self.dut_failures:
-            return "fail"     # a DUT that stopped fails, measured or not
-        if not self.measurements:
-            return "error"
-        if any(m["outcome"] in ("fail", "error") for m in self.measurements):
-            return "fail"
-        if any(t["outcome"] == "failed" for t in self.tests):
-            return "fail"
-        return "pass"
+    @property
+    def name(self) -> str:
+        """The name of the DUT under qualification."""
+        return self.profile.name
+
+    def verdict(self, exitstatus: int | None = None) -> str:
+        """The session's verdict (:func:`hil.qualification.verdict.session_verdict`)."""
+        return session_verdict(setup_error=self.setup_error,
+                               complete=self.complete(exitstatus), interrupted=self.interrupted,
+                               exitstatus=exitstatus, invalid_bench=self.invalid_bench,
+                               dut_failures=self.dut_failures, measurements=self.measurements,
+                               tests=self.tests)
 
     def record(self, exitstatus: int | None = None) -> dict[str, Any]:
         """The qualification record of the session (schema ``agrihil.qualification/1``).
@@ -730,7 +677,7 @@ class QualificationSession:
             "run_id": self.run_id,
             "started_at": self.started_at,
             "wall_s": round(time.perf_counter() - self.t0, 3),
-            "verdict": self._verdict(exitstatus),
+            "verdict": self.verdict(exitstatus),
             "dut": {**self.profile.identity(), "parameters": self.profile.parameters},
             "rig": {"name": rig_cls.name, **_rig_config_identity(rig_cls, self.profile)},
             "bus": self.bus, "clock": self.clock, "seed": self.seed,
@@ -755,7 +702,6 @@ class QualificationSession:
         }
 
 
-_REPORT_ERROR = pytest.StashKey[str]()
 
 
 def _rig_config_identity(rig_cls: type[Rig], profile: DutProfile) -> dict[str, Any]:

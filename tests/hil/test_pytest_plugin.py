@@ -220,3 +220,21 @@ def test_a_qualification_leaves_no_benchmarks_directory(tmp_path: Path,
                           cwd=tmp_path, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
     assert (tmp_path / ".benchmarks").exists() is not qualification
+
+
+def test_verdict_of_a_session() -> None:
+    """hil.qualification.verdict decides from what the session recorded, nothing else."""
+    from hil.qualification.verdict import session_verdict
+
+    ok = {"setup_error": "", "complete": True, "interrupted": False, "exitstatus": 0,
+          "invalid_bench": {}, "dut_failures": {},
+          "measurements": [{"outcome": "pass"}], "tests": [{"outcome": "passed"}]}
+    assert session_verdict(**ok) == "pass"
+    assert session_verdict(**{**ok, "measurements": [{"outcome": "fail"}]}) == "fail"
+    assert session_verdict(**{**ok, "measurements": []}) == "error"
+    assert session_verdict(**{**ok, "setup_error": "no ECU"}) == "error"
+    assert session_verdict(**{**ok, "invalid_bench": {"t": "runs/t"}}) == "invalid-bench"
+    assert session_verdict(**{**ok, "dut_failures": {"t": "stopped"}}) == "fail"
+    assert session_verdict(**{**ok, "complete": False}) == "interrupted"
+    assert session_verdict(**{**ok, "complete": False,
+                              "tests": [{"outcome": "failed"}]}) == "fail"        # pytest -x
