@@ -69,18 +69,21 @@ class CampaignPlan:
 
 
 @contextmanager
-def dask_client(*, workers: int | None = None, scheduler: str | None = None
-                ) -> Iterator[Any]:
-    """A Dask client: of the cluster at ``scheduler``, or of a new ``LocalCluster`` of
-    ``workers`` single-threaded processes (default: the cores)."""
+def dask_client(*, workers: int | None = None, scheduler: str | None = None,
+                connect_timeout_s: float = 10.0) -> Iterator[Any]:
+    """A Dask client: of the cluster at ``scheduler`` (given up after ``connect_timeout_s``),
+    or of a new ``LocalCluster`` of ``workers`` single-threaded processes (default: the
+    cores)."""
     import dask
     from dask.distributed import Client, LocalCluster
 
     if scheduler:
         try:
-            client = Client(scheduler, timeout=30)
-        except OSError as exc:
-            raise CampaignError(f"no Dask scheduler at {scheduler}: {exc}") from exc
+            client = Client(scheduler, timeout=connect_timeout_s)
+        except (OSError, TimeoutError) as exc:
+            raise CampaignError(f"no Dask scheduler at {scheduler} (--scheduler): nothing "
+                                f"answered within {connect_timeout_s:g} s "
+                                f"(--connect-timeout-s)") from exc
         try:
             yield client
         finally:
@@ -96,7 +99,9 @@ def dask_client(*, workers: int | None = None, scheduler: str | None = None
                           "distributed.worker.daemon": False,
                           "distributed.admin.system-monitor.log-length": 120,
                           "distributed.admin.low-level-log-length": 100,
-                          "distributed.admin.log-length": 1000}):
+                          "distributed.admin.log-length": 1000,
+                          # Ctrl-C reaches the campaign, not the workers (no tracebacks)
+                          "distributed.worker.preload": ["hil.campaign.quiet_worker"]}):
         logging.getLogger("distributed").setLevel(logging.ERROR)
         cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
                                processes=True, dashboard_address=":0", scheduler_port=0,
@@ -155,13 +160,17 @@ class Campaign:
         self.started_at = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
         self.t0 = time.perf_counter()
         self._written = 0.0
-        out.mkdir(parents=True, exist_ok=True)
-        self._jsonl = (out / SAMPLES_NAME).open("w", encoding="utf-8")
+        #: samples.jsonl, opened with the first sample: a campaign that never began writes
+        #: nothing
+        self._jsonl: Any = None
 
     def add(self, sample: dict[str, Any]) -> None:
         """Keep ``sample``: appended to samples.jsonl at once, campaign.json now and then."""
         sample = clean(sample)
         self.samples.append(sample)
+        if self._jsonl is None:
+            self.out.mkdir(parents=True, exist_ok=True)
+            self._jsonl = (self.out / SAMPLES_NAME).open("w", encoding="utf-8")
         self._jsonl.write(json.dumps(sample) + "\n")
         self._jsonl.flush()
         if time.perf_counter() - self._written > _REWRITE_S:
@@ -203,10 +212,14 @@ class Campaign:
 
     def write(self) -> Path:
         self._written = time.perf_counter()
+        self.out.mkdir(parents=True, exist_ok=True)
+        if self._jsonl is None:     # no sample yet: an empty samples.jsonl says so
+            (self.out / SAMPLES_NAME).touch()
         return write_record(self.out, self.document())
 
     def close(self) -> None:
-        self._jsonl.close()
+        if self._jsonl is not None:
+            self._jsonl.close()
 
 
 def rerun_selection(doc: dict[str, Any], *, worst: int, max_reruns: int) -> list[int]:

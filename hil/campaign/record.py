@@ -9,11 +9,11 @@ arrives.
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 from typing import Any
 
 from hil.errors import ConfigError
+from hil.record.atomic import write_text_atomic
 
 SCHEMA = "agrihil.campaign/1"
 RECORD_NAME = "campaign.json"
@@ -22,11 +22,8 @@ SAMPLES_NAME = "samples.jsonl"
 
 def write_record(out: Path, doc: dict[str, Any]) -> Path:
     """Write ``doc`` to ``out/campaign.json`` through a temporary file (never half a file)."""
-    path = out / RECORD_NAME
-    tmp = path.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(doc, indent=1, default=_default, allow_nan=False))
-    os.replace(tmp, path)
-    return path
+    return write_text_atomic(out / RECORD_NAME,
+                             json.dumps(doc, indent=1, default=_default, allow_nan=False))
 
 
 def _default(obj: Any) -> Any:

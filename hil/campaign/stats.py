@@ -95,7 +95,8 @@ def verdict(passed: int, n: int, *, pass_probability: float | None,
         if failed:
             return Verdict("fail", f"{failed} of {n} samples failed{note}")
         return Verdict("pass", f"all {n} samples passed: pass probability >= "
-                               f"{demonstrated:.4f} at {confidence:.0%} confidence{note}")
+                               f"{demonstrated:.4f} (one-sided {confidence:.0%} lower "
+                               f"bound){note}")
     need = f"{pass_probability:.4g} at {confidence:.0%} confidence"
     if demonstrated >= pass_probability:
         return Verdict("pass", f"{passed}/{n} passed: lower bound {demonstrated:.4f} >= "

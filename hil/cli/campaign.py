@@ -16,15 +16,30 @@ from __future__ import annotations
 
 import argparse
 import os
-import shutil
 import sys
 from pathlib import Path
 from typing import Any
 
-from hil.cli.args import add_bus_clock
+from hil.campaign.record import RECORD_NAME, SAMPLES_NAME
+from hil.cli.args import (
+    add_bus_clock,
+    check_bus_for_dut,
+    check_bus_spec,
+    check_keyword,
+    check_launchable,
+    prepare_out_dir,
+)
+from hil.cli.phases import phase
 from hil.errors import ConfigError
+from hil.record.staging import Staging, signals_held
+from hil.validation import help_with_range, option_type
 
 EXIT_BY_VERDICT = {"pass": 0, "fail": 1, "inconclusive": 1, "error": 2}
+#: what a campaign writes into --out (moved in from its staging directory, the record last)
+OUTPUTS = (SAMPLES_NAME, "samples", "report.html")
+STAGING_PREFIX = ".campaign-"
+#: the most samples rerun with full recording by default (--max-reruns)
+DEFAULT_MAX_RERUNS = 10
 
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -34,30 +49,46 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
                     "seed S+i with rig parameters drawn from a dispersion file, on a local "
                     "Dask cluster or an existing one; pass rate with an exact confidence "
                     "interval, per-measurement distributions, failing and worst samples "
-                    "rerun with full recording.")
+                    "rerun with full recording. Every option is checked before any worker "
+                    "starts.")
     p.add_argument("profile", help="DUT profile (TOML)")
-    p.add_argument("--samples", type=int, required=True, help="number of samples N")
+    p.add_argument("--samples", type=option_type("campaign --samples"), required=True,
+                   help=help_with_range("campaign --samples", "number of samples N"))
     add_bus_clock(p)
     p.add_argument("--suite", default="fast", help="comma-separated suites (default: fast)")
-    p.add_argument("-k", dest="keyword", default=None, help="pytest -k expression")
+    p.add_argument("-k", dest="keyword", default=None,
+                   help="pytest -k expression (it must select at least one test)")
     p.add_argument("--dispersion", default=None, metavar="FILE",
                    help="dispersion file (default: the rig's shipped dispersion.toml; "
                         "'none': nominal rig parameters, seeds only)")
     where = p.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=int, default=None,
-                       help="local Dask worker processes (default: the cores)")
+    where.add_argument("--workers", type=option_type("campaign --workers"), default=None,
+                       help=help_with_range("campaign --workers",
+                                            "local Dask worker processes (default: the cores)"))
     where.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                        help="run on an existing Dask cluster instead")
+    p.add_argument("--connect-timeout-s", type=option_type("campaign --connect-timeout-s"),
+                   default=10.0,
+                   help=help_with_range("campaign --connect-timeout-s",
+                                        "with --scheduler: give up when it does not answer "
+                                        "within this (default: 10)"))
     p.add_argument("--out", default="campaign", help="output directory (default: campaign)")
-    p.add_argument("--seed", type=int, default=0, help="seed S of sample 0 (default: 0)")
-    p.add_argument("--timeout-s", type=float, default=600.0,
-                   help="a sample running longer is killed and recorded as an error "
-                        "(default: 600)")
-    p.add_argument("--worst", type=int, default=1,
-                   help="worst samples per measurement rerun with full recording (default: 1)")
-    p.add_argument("--max-reruns", type=int, default=10,
-                   help="most samples rerun with full recording, failing ones first "
-                        "(default: 10; 0: none)")
+    p.add_argument("--seed", type=option_type("--seed"), default=0,
+                   help=help_with_range("--seed", "seed S of sample 0 (default: 0)"))
+    p.add_argument("--timeout-s", type=option_type("campaign --timeout-s"), default=600.0,
+                   help=help_with_range("campaign --timeout-s",
+                                        "a sample running longer is killed and recorded as "
+                                        "an error (default: 600)"))
+    p.add_argument("--worst", type=option_type("campaign --worst"), default=1,
+                   help=help_with_range("campaign --worst",
+                                        "worst samples per measurement rerun with full "
+                                        "recording (default: 1)"))
+    p.add_argument("--max-reruns", type=option_type("campaign --max-reruns"), default=None,
+                   help=help_with_range("campaign --max-reruns",
+                                        "most samples rerun with full recording, failing ones "
+                                        "first (default: proportionate to the campaign, one "
+                                        "per ten samples, at least 1 and at most "
+                                        f"{DEFAULT_MAX_RERUNS}; 0: none)"))
     p.add_argument("--isolation", choices=["fork", "process", "inprocess"], default=None,
                    help="fork (default on local workers): a fresh process per sample, "
                         "forked from one that imported the suites' dependencies once, "
@@ -70,40 +101,79 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
     p.set_defaults(func=_campaign)
 
 
-def _campaign(args: argparse.Namespace) -> int:
+def default_max_reruns(samples: int) -> int:
+    """Reruns proportionate to the campaign: one per ten samples, 1 .. DEFAULT_MAX_RERUNS."""
+    return max(1, min(DEFAULT_MAX_RERUNS, samples // 10))
+
+
+def check_scheduler(address: str | None) -> None:
+    """Refuse a ``--scheduler`` that is no Dask address (``tcp://HOST:PORT``)."""
+    if address is None:
+        return
+    scheme, sep, rest = address.partition("://")
+    host, _, port = rest.rpartition(":")
+    if not sep or scheme not in ("tcp", "tls", "ws", "wss", "inproc") or not host \
+            or not port.isdigit() or not 1 <= int(port) <= 65535:
+        raise ConfigError(f"{address!r} is not a Dask scheduler address: give "
+                          f"tcp://HOST:PORT with a port 1..65535", key="--scheduler")
+
+
+def check_campaign_options(args: argparse.Namespace) -> tuple[Any, Any]:
+    """Every option, alone and with the others, before anything starts (no worker, no file
+    in ``--out``). Returns the profile and the dispersion (None: nominal)."""
     from hil.campaign.dispersion import load_dispersion
-    from hil.campaign.engine import Campaign, CampaignPlan, dask_client, map_samples
-    from hil.campaign.progress import Progress
-    from hil.dut.build import ensure_built
+    from hil.cli.qualify import check_suites
     from hil.dut.profile import load_profile
 
     profile = load_profile(args.profile)
-    if args.isolation is None:
-        args.isolation = "process" if args.scheduler else "fork"
-    if args.samples < 1:
-        raise ConfigError(f"--samples must be >= 1, got {args.samples}", key="--samples")
-    if args.workers is not None and args.workers < 1:
-        raise ConfigError(f"--workers must be >= 1, got {args.workers}", key="--workers")
+    check_suites(args.suite)
+    check_keyword(args.keyword)
+    check_bus_spec(args.bus)
+    check_bus_for_dut(args.bus, profile.dut.kind, inprocess_twin=bool(profile.launch.inprocess))
+    if args.bus == "inline" and args.clock != "lockstep":
+        raise ConfigError("the inline bus calls the controller inside the lockstep loop: use "
+                          "--clock lockstep, or a bus (softbus) for real time", key="--bus")
+    check_scheduler(args.scheduler)
     dispersion = None
     if (args.dispersion or "").lower() != "none":
         path = args.dispersion or default_dispersion(profile.dut.rig)
         dispersion = load_dispersion(path, rig=profile.dut.rig)
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"{out} exists and is not a directory", key="--out")
+    return profile, dispersion
+
+
+def _campaign(args: argparse.Namespace) -> int:
+    from hil.campaign.engine import Campaign, CampaignPlan, dask_client, map_samples
+    from hil.campaign.progress import Progress
+    from hil.campaign.selection import check_selection
+    from hil.dut.build import ensure_built
+
+    profile, dispersion = check_campaign_options(args)
+    if args.isolation is None:
+        args.isolation = "process" if args.scheduler else "fork"
+    max_reruns = (default_max_reruns(args.samples) if args.max_reruns is None
+                  else args.max_reruns)
     plan = CampaignPlan(profile=profile, samples=args.samples, seed=args.seed, bus=args.bus,
                         clock=args.clock, suites=args.suite, dispersion=dispersion,
                         timeout_s=args.timeout_s, keyword=args.keyword, worst=args.worst,
-                        max_reruns=args.max_reruns, isolation=args.isolation)
+                        max_reruns=max_reruns, isolation=args.isolation)
+    check_selection(plan.task(0))            # -k and --suite select at least one test
+    build_dir = None
     if args.scheduler is None and args.bus != "inline" and profile.build is not None:
         print(f"hil: building {profile.name} (cached after the first time) ...",
               file=sys.stderr)
-        ensure_built(profile)
-    out = Path(args.out)
-    for stale in ("campaign.json", "samples.jsonl", "report.html"):
-        (out / stale).unlink(missing_ok=True)
-    shutil.rmtree(out / "samples", ignore_errors=True)
+        build = ensure_built(profile)
+        build_dir = Path(str(build["build_dir"])) if build.get("build_dir") else None
+    if args.scheduler is None:
+        check_launchable(profile, bus=args.bus, clock=args.clock, build=build_dir)
+    out = prepare_out_dir(args.out)
+    staging = Staging(out, prefix=STAGING_PREFIX, outputs=OUTPUTS, record=RECORD_NAME)
     engine = ({"kind": "scheduler", "address": args.scheduler} if args.scheduler else
               {"kind": "local", "workers": args.workers or os.cpu_count() or 1})
     engine["isolation"] = args.isolation
-    campaign = Campaign(plan, out, engine=engine)
+    campaign = Campaign(plan, staging.path, engine=engine)
     label = f"campaign of {profile.name}"
     where = (f"Dask scheduler {args.scheduler}" if args.scheduler
              else f"{engine['workers']} local workers")
@@ -112,31 +182,45 @@ def _campaign(args: argparse.Namespace) -> int:
           f"{dispersion.path if dispersion else 'none'}; "
           f"{where})",
           file=sys.stderr)
-    try:
-        with dask_client(workers=args.workers, scheduler=args.scheduler) as client:
-            engine["workers"] = len(client.scheduler_info().get("workers", {}))
-            progress = Progress(args.samples, label, enabled=not args.no_progress)
+    # nothing in --out changes until the cluster is there: a campaign that cannot start
+    # leaves the previous one as it was
+    with dask_client(workers=args.workers, scheduler=args.scheduler,
+                     connect_timeout_s=args.connect_timeout_s) as client:
+        engine["workers"] = len(client.scheduler_info().get("workers", {}))
+        try:
+            # campaign.json says "running" until it is not (the previous one kept as
+            # campaign.previous.json); a signal during begin() arrives right after it, here
+            staging.begin(campaign.document())
+            phase("campaign:started")
+            with staging.writing():
+                progress = Progress(args.samples, label, enabled=not args.no_progress)
 
-            def on_sample(sample: dict[str, Any]) -> None:
-                campaign.add(sample)
-                progress.update(sample)
-            try:
-                map_samples(client, [plan.task(i) for i in range(args.samples)], on_sample,
-                            prefix=f"agrihil-{plan.campaign_id}-sample")
-            finally:
-                progress.close()
-            campaign.write()
-            _rerun(campaign, client, out)
-        campaign.status = "complete"
-    except KeyboardInterrupt:
-        campaign.status = "interrupted"
-        raise
-    finally:
-        if campaign.status == "running":
+                def on_sample(sample: dict[str, Any]) -> None:
+                    campaign.add(sample)
+                    progress.update(sample)
+                    phase("campaign:sample")
+                try:
+                    map_samples(client, [plan.task(i) for i in range(args.samples)],
+                                on_sample, prefix=f"agrihil-{plan.campaign_id}-sample")
+                finally:
+                    progress.close()
+                campaign.write()
+                phase("campaign:written")
+                _rerun(campaign, client, staging.path)
+            campaign.status = "complete"
+        except KeyboardInterrupt:
             campaign.status = "interrupted"
-        campaign.close()
-        campaign.write()
-        _write_report(out)
+            raise
+        finally:
+            if campaign.status == "running":
+                campaign.status = "interrupted"
+            if staging.path.exists():
+                with signals_held():
+                    campaign.close()
+                    campaign.write()
+                    _write_report(staging.path)
+                    phase("campaign:promote")
+                    staging.promote()
     return _report(campaign.document(), out)
 
 
@@ -157,8 +241,10 @@ def _rerun(campaign: Any, client: Any, out: Path) -> None:
     if not chosen:
         return
     why = _why(doc)
-    print(f"hil: rerunning {len(chosen)} samples with full recording (failing first, then the "
-          f"worst per measurement): {', '.join(map(str, chosen))}", file=sys.stderr)
+    print(f"hil: rerunning {len(chosen)} of {plan.samples} samples with full recording "
+          f"(failing first, then the worst per measurement; at most {plan.max_reruns}: "
+          f"--max-reruns): {', '.join(map(str, chosen))}", file=sys.stderr)
+    phase("campaign:rerun")
     by_index = {s["index"]: s for s in campaign.samples}
     tasks = {i: plan.task(i, record="full", out_dir=str((out / "samples" / f"{i:04d}").resolve()))
              for i in chosen}
@@ -209,8 +295,8 @@ def _report(doc: dict[str, Any], out: Path) -> int:
     rate = s["pass_rate"]
     print(f"hil: campaign {doc['dut']['name']}: {s['verdict'].upper()}: {s['reason']}; "
           f"{s['passed']}/{s['judged']} passed"
-          + (f" ({rate:.1%}, 95 % CI {s['ci95'][0]:.3f}-{s['ci95'][1]:.3f})"
-             if rate is not None else "")
+          + (f" ({rate:.1%}; exact two-sided 95 % interval of the pass rate "
+             f"{s['ci95'][0]:.3f}-{s['ci95'][1]:.3f})" if rate is not None else "")
           + f"; {s['errors']} errors; {doc['wall_s']:.0f} s; report: {out / 'report.html'}",
           file=sys.stderr)
     return EXIT_BY_VERDICT.get(s["verdict"], 2)

@@ -5,6 +5,8 @@ done, suites started, each sample, record written, rerun, promote). With the env
 variable ``HIL_TEST_SIGNAL_AT`` set to ``NAME`` (or ``NAME@N``: the N-th time that phase is
 reached, counting from 1), the process sends itself SIGINT there, so a test proves that a
 signal at that exact moment is neither lost nor turned into a pass, without relying on timing.
+A trailing ``/group`` sends it to the whole process group instead, as Ctrl-C on a terminal
+does (Dask workers included).
 Unset (always, outside tests), :func:`phase` does nothing.
 """
 
@@ -29,12 +31,16 @@ def phase(name: str) -> None:
     wanted = os.environ.get(ENV)
     if not wanted:
         return
+    wanted, group, _ = wanted.partition("/group")
     target, _, nth = wanted.partition("@")
     if target != name:
         return
     _reached[name] = _reached.get(name, 0) + 1
     if _reached[name] == (int(nth) if nth.isdigit() else 1):
-        os.kill(os.getpid(), signal.SIGINT)
+        if group:
+            os.killpg(os.getpgid(0), signal.SIGINT)
+        else:
+            os.kill(os.getpid(), signal.SIGINT)
 
 
 class PhaseMarks:
