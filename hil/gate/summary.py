@@ -1,8 +1,10 @@
 """What the gate says: a Markdown page for CI (a GitHub step summary) and a few terminal lines.
 
 Both are pure functions of a :class:`~hil.gate.comparison.GateResult`; the caller writes them.
-The Markdown starts with the verdict line, then the reasons, then one table row per measurement
-identity (worst first): measurement, conditions, value, limits, baseline, delta, status.
+The Markdown starts with the verdict line and the reasons, then a table of what needs a look
+(failures, errors, missing measurements, regressions, marginal values, bus checks included),
+then the control measurements (measurement, conditions, value, limits, baseline, delta,
+status; worst first), then bus conformance as one line per run.
 """
 
 from __future__ import annotations
@@ -16,12 +18,20 @@ _LABEL = {Verdict.PASS: "PASS", Verdict.FAIL: "FAIL",
 _ICON = {Verdict.PASS: "✅", Verdict.FAIL: "❌", Verdict.INVALID_BENCH: "⚠️",
          Verdict.ERROR: "⚠️"}
 _LOUD = (Status.FAIL, Status.ERROR, Status.MISSING, Status.REGRESSION)
+#: rows of the "needs a look" table, whatever their kind
+_LOOK = (*_LOUD, Status.MARGINAL)
+#: bus conformance measurements (folded into one line per run unless they need a look)
+BUS_PREFIX = "bus."
 #: statuses listed one by one in the terminal summary
 _LISTED = (Status.FAIL, Status.ERROR, Status.MISSING, Status.REGRESSION, Status.MARGINAL,
            Status.IMPROVED, Status.NEW)
 
 
 def render_markdown(result: GateResult, *, baseline_written: str = "") -> str:
+    """The CI page: the verdict and why; what needs a look (failures, errors, missing
+    measurements, regressions, marginal values), whatever kind; the control measurements;
+    then bus conformance, one line per run (its checks that need a look are in the first
+    table); notes last."""
     record = result.record
     lines = [f"### {_ICON[result.verdict]} agrihil gate: {_LABEL[result.verdict]} — "
              f"{_md(record.dut.describe())}", ""]
@@ -35,17 +45,16 @@ def render_markdown(result: GateResult, *, baseline_written: str = "") -> str:
         lines.append("")
     counts = ", ".join(f"{n} {status.value}" for status, n in result.counts().items())
     lines += [f"{len(result.rows)} measurements: {counts or 'none'}", ""]
-    if result.rows:
-        lines.append("| measurement | conditions | value | limits | baseline | delta | status |")
-        lines.append("|---|---|---:|---|---:|---:|---|")
-        for row in result.rows:
-            status = f"**{row.status.value}**" if row.status in _LOUD else row.status.value
-            cells = [_md(c) for c in (format_conditions(row.conditions),
-                                      _quantity(row.value, row.unit),
-                                      _limits(row.low, row.high, ascii_=False),
-                                      _quantity(row.baseline, row.unit), _delta(row))]
-            lines.append("| " + " | ".join([_code(row.name), *cells, status]) + " |")
-        lines.append("")
+    look = [row for row in result.rows if row.status in _LOOK]
+    control = [row for row in result.rows
+               if row.status not in _LOOK and not _is_bus(row.name)]
+    bus = [row for row in result.rows if _is_bus(row.name)]
+    if look:
+        lines += [f"#### Needs a look ({len(look)})", "", *_table(look), ""]
+    if control:
+        lines += [f"#### Control measurements ({len(control)})", "", *_table(control), ""]
+    if bus:
+        lines += _bus_lines(bus)
     notes = [f"{_code(row.key)}: {_md(note)}" for row in result.rows for note in row.notes]
     notes += [_md(note) for note in result.notes]
     if notes:
@@ -53,6 +62,41 @@ def render_markdown(result: GateResult, *, baseline_written: str = "") -> str:
         lines += [f"- {note}" for note in notes]
         lines.append("")
     return "\n".join(lines)
+
+
+def _is_bus(name: str) -> bool:
+    return name.startswith(BUS_PREFIX)
+
+
+def _table(rows: list[Row]) -> list[str]:
+    lines = ["| measurement | conditions | value | limits | baseline | delta | status |",
+             "|---|---|---:|---|---:|---:|---|"]
+    for row in rows:
+        status = f"**{row.status.value}**" if row.status in _LOUD else row.status.value
+        cells = [_md(c) for c in (format_conditions(row.conditions),
+                                  _quantity(row.value, row.unit),
+                                  _limits(row.low, row.high, ascii_=False),
+                                  _quantity(row.baseline, row.unit), _delta(row))]
+        lines.append("| " + " | ".join([_code(row.name), *cells, status]) + " |")
+    return lines
+
+
+def _bus_lines(rows: list[Row]) -> list[str]:
+    """Bus conformance, one line per run: how many checks and their statuses (those that
+    need a look are in the table above, and said so)."""
+    by_run: dict[str, list[Row]] = {}
+    for row in rows:
+        by_run.setdefault(str(row.conditions.get("run", "—")), []).append(row)
+    lines = [f"#### Bus conformance ({len(by_run)} runs, {len(rows)} checks)", ""]
+    for run, run_rows in sorted(by_run.items()):
+        statuses: dict[str, int] = {}
+        for row in run_rows:
+            statuses[row.status.value] = statuses.get(row.status.value, 0) + 1
+        counts = ", ".join(f"{n} {status}" for status, n in statuses.items())
+        above = " (see above)" if any(row.status in _LOOK for row in run_rows) else ""
+        lines.append(f"- {_code(run)}: {len(run_rows)} checks: {counts}{above}")
+    lines.append("")
+    return lines
 
 
 def render_text(result: GateResult, *, baseline_written: str = "") -> str:
