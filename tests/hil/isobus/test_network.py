@@ -7,7 +7,7 @@ import math
 
 import can
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hil.errors import FrameError
@@ -22,6 +22,7 @@ A = IsobusName(identity_number=1, function=134)
 B = IsobusName(identity_number=2, function=130)
 
 
+@settings(deadline=None)     # no wall-clock limit: the machine is shared
 @given(st.integers(0, 7), st.integers(0, 0x3FFFF), st.integers(0, 255), st.integers(0, 255))
 def test_identifier_round_trip(priority: int, pgn: int, source: int, destination: int) -> None:
     if is_pdu1(pgn):
