@@ -28,6 +28,7 @@ extensions = [
     "sphinx.ext.viewcode",
     "sphinxarg.ext",
     "agrihil_docs",
+    "rig_quantities",
 ]
 source_suffix = {".md": "markdown"}
 root_doc = "index"
