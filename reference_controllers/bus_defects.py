@@ -11,6 +11,9 @@ DUT passes the control suites and must fail its bus conformance
   8 bytes);
 * ``sparse-heartbeat:N`` — only every N-th heartbeat is sent (its prescaler counts the wrong
   tick);
+* ``heartbeat-stops:N`` — after N control steps no heartbeat goes out any more, while the
+  control goes on (the heartbeat task died: only a consumer that judges the whole run, the
+  trailing silence included, sees it);
 * ``debug-frame:ID`` — every 10th control step also sends 8 bytes of internal state on
   identifier ID (hexadecimal; more than 0x7FF is a 29-bit identifier), which the databases do
   not declare (a trace left in a release build);
@@ -141,6 +144,19 @@ class SparseHeartbeat(BusDefect):
         return out
 
 
+class HeartbeatStops(BusDefect):
+    def __init__(self, inner: Controller, commands: frozenset[int], after_steps: int) -> None:
+        super().__init__(inner, commands)
+        if after_steps < 1:
+            raise ValueError(f"heartbeat-stops needs N >= 1 steps, got {after_steps}")
+        self.after_steps = after_steps
+
+    def step_frames(self, frames: list[can.Message]) -> list[can.Message]:
+        if self.steps <= self.after_steps:
+            return frames
+        return [m for m in frames if not _is_heartbeat(m)]
+
+
 class DebugFrame(BusDefect):
     def __init__(self, inner: Controller, commands: frozenset[int], can_id: int) -> None:
         super().__init__(inner, commands)
@@ -182,6 +198,7 @@ DEFECTS: dict[str, tuple[type[BusDefect], object]] = {
     "command-twice": (CommandTwice, None),
     "wrong-dlc": (WrongDlc, int),
     "sparse-heartbeat": (SparseHeartbeat, int),
+    "heartbeat-stops": (HeartbeatStops, int),
     "debug-frame": (DebugFrame, lambda text: int(text, 16)),
     "talks-before-bootup": (TalksBeforeBootup, None),
     "double-bootup": (DoubleBootup, None),

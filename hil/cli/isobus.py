@@ -11,11 +11,6 @@ from hil.errors import ConfigError
 
 __all__ = ["add_subparser"]
 
-#: the fertilizer rig's example field and map (plant_emulators/fertilizer/fields/)
-_FIELDS = Path(__file__).resolve().parents[2] / "plant_emulators" / "fertilizer" / "fields"
-DEFAULT_FIELD = _FIELDS / "field-rect.geojson"
-DEFAULT_MAP = _FIELDS / "rates-3zones.geojson"
-
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     isobus = subparsers.add_parser("isobus", help="the rig's ISOBUS tractor (TECU, Task "
@@ -27,14 +22,17 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
                       "driving a field path over a prescription map")
     serve.add_argument("--bus", required=True,
                        help="bus spec, e.g. socketcan:can0, socketcand:127.0.0.1:29536:can0")
-    serve.add_argument("--field", type=Path, default=DEFAULT_FIELD, metavar="FILE",
-                       help="field file (GeoJSON: boundary, work area, path legs); default: the "
-                            "fertilizer rig's example field")
-    serve.add_argument("--map", type=Path, default=DEFAULT_MAP, metavar="FILE",
-                       help="prescription map (GeoJSON polygons with a rate); default: the "
-                            "fertilizer rig's three-zone map")
-    serve.add_argument("--no-map", action="store_true",
-                       help="send no rate set-point (TC-BAS and section control only)")
+    serve.add_argument("--path", "--field", dest="field", type=Path, required=True,
+                       metavar="FILE",
+                       help="field file: GeoJSON with the field boundary, the work area and the "
+                            "path's legs (e.g. plant_emulators/fertilizer/fields/"
+                            "field-rect.geojson; docs: guide/prescription-maps)")
+    rate = serve.add_mutually_exclusive_group(required=True)
+    rate.add_argument("--map", type=Path, metavar="FILE",
+                      help="prescription map: GeoJSON polygons with a rate (e.g. "
+                           "plant_emulators/fertilizer/fields/rates-3zones.geojson)")
+    rate.add_argument("--no-map", action="store_true",
+                      help="send no rate set-point (TC-BAS and section control only)")
     serve.add_argument("--duration", type=float, default=math.inf, metavar="S",
                        help="stop after S seconds of run time (default: until Ctrl-C)")
     serve.add_argument("--drive-after", type=float, default=10.0, metavar="S",

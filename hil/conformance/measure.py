@@ -13,7 +13,10 @@ Default limits (a profile's ``[limits]`` table overrides any of them by name):
 ``bus.cycle_time.median``               -10 % … +10 % of the declared cycle (per message)
 ``bus.cycle_time.outside_band``         high 5 % of the intervals (per message; lockstep)
 ``bus.heartbeat.period``                -10 % … +10 % of ``timing.heartbeat_period_ms``
-``bus.heartbeat.max_interval``          high: the consumer's heartbeat time (per consumer)
+``bus.heartbeat.max_interval``          high: the consumer's heartbeat time (per consumer);
+                                        without a consumer on the rig, the rig's own monitor
+                                        at 2 x ``timing.heartbeat_period_ms``; the gap from the
+                                        last heartbeat to the end of the run counts
 ``bus.bootup.frames_before``            high 0
 ``bus.bootup.unexpected``               high 0
 ``bus.share``                           high 10 % of the bit rate
@@ -56,6 +59,12 @@ SYNC_ID = 0x080
 CYCLE_TOLERANCE_PCT = 10.0
 OUTSIDE_BAND_PCT = 5.0
 HEARTBEAT_TOLERANCE_PCT = 10.0
+#: Without a node of the rig that consumes the DUT's heartbeat (object 0x1016 of an EDS), the rig
+#: monitors it as a CiA 301 heartbeat consumer would: CiA 301 only requires a consumer time
+#: longer than the producer time; twice the declared period is the usual setting (one lost or
+#: late heartbeat tolerated, two not), so a node that falls silent is caught within two periods
+#: whatever the rig's devices do with its heartbeat.
+RIG_MONITOR_FACTOR = 2.0
 BUS_SHARE_PCT = 10.0
 #: where the detail table goes, beside the run's record.json
 DETAIL_FILE = "conformance.json"
@@ -218,7 +227,9 @@ def judge(log: FrameLog, contract: BusContract, profile: DutProfile, *, clock: s
     out.detail["heartbeat"] = _heartbeat(add, contract, dut.time_s[is_hb & ~is_bootup],
                                          segment[is_hb & ~is_bootup],
                                          resolution_ms(contract.frames[(contract.heartbeat_id,
-                                                                        False)]), node)
+                                                                        False)]), node,
+                                         last_power_up=_last_power_up(dut.time_s, is_bootup),
+                                         end_s=duration_s if duration_s > 0 else None)
     # boot-up: first, and once per power-up
     before = int(np.count_nonzero(segment == 0))
     bootups = int(np.count_nonzero(is_bootup))
@@ -333,8 +344,31 @@ def _worst(*outcomes: str) -> str:
     return "info"
 
 
+def _last_power_up(time_s: np.ndarray, is_bootup: np.ndarray) -> tuple[int, float] | None:
+    """The last power-up's segment number and its boot-up time (``None``: no boot-up seen)."""
+    boots = np.flatnonzero(is_bootup)
+    if not boots.size:
+        return None
+    return int(boots.size), float(time_s[boots[-1]])
+
+
+def _trailing_gap_s(time_s: np.ndarray, segment: np.ndarray,
+                    last_power_up: tuple[int, float] | None, end_s: float | None) -> float:
+    """Time from the last heartbeat of the last power-up (or its boot-up, if it sent none) to
+    the end of the run: the gap a heartbeat consumer sees when a node falls silent for good.
+    NaN when the end of the run or the power-up is unknown."""
+    if end_s is None or last_power_up is None:
+        return math.nan
+    seg, boot_s = last_power_up
+    mine = time_s[segment == seg]
+    last = float(mine.max()) if mine.size else boot_s
+    return max(0.0, end_s - last)
+
+
 def _heartbeat(add: _Sink, contract: BusContract, time_s: np.ndarray, segment: np.ndarray,
-               resolution_ms: float, node: dict[str, Any]) -> dict[str, Any]:
+               resolution_ms: float, node: dict[str, Any], *,
+               last_power_up: tuple[int, float] | None = None,
+               end_s: float | None = None) -> dict[str, Any]:
     declared = contract.heartbeat_period_ms
     gaps = checks.intervals(time_s, segment)
     out: dict[str, Any] = {"id": f"0x{contract.heartbeat_id:03X}", "declared_ms": declared,
@@ -346,14 +380,26 @@ def _heartbeat(add: _Sink, contract: BusContract, time_s: np.ndarray, segment: n
             f"{stats.max_ms:.4g} over {stats.count} intervals; declared {declared:g} ms "
             "(timing.heartbeat_period_ms)" if stats.count else "no heartbeat interval",
             low=band[0], high=band[1])
+    trailing_ms = 1000.0 * _trailing_gap_s(time_s, segment, last_power_up, end_s)
+    longest = [v for v in (stats.max_ms if stats.count else math.nan, trailing_ms)
+               if not math.isnan(v)]
+    silence_ms = max(longest) if longest else math.nan
     out.update(median_ms=stats.median_ms, min_ms=stats.min_ms, max_ms=stats.max_ms,
+               trailing_ms=trailing_ms, longest_silence_ms=silence_ms,
                intervals=stats.count, outcome=m.outcome.value, consumers=[])
-    for consumer in contract.consumers:
-        c = add("bus.heartbeat.max_interval", stats.max_ms if stats.count else math.nan,
-                {**node, "consumer": consumer.name},
-                f"the {consumer.name} expects a heartbeat within {consumer.time_ms:g} ms "
-                "(0x1016)", high=consumer.time_ms)
-        out["consumers"].append({"name": consumer.name, "time_ms": consumer.time_ms,
+    consumers = [(c.name, c.time_ms, "(0x1016)") for c in contract.consumers]
+    if not consumers:
+        consumers = [("rig's heartbeat monitor", RIG_MONITOR_FACTOR * declared + resolution_ms,
+                      f"({RIG_MONITOR_FACTOR:g} x timing.heartbeat_period_ms + the rig's "
+                      "time-stamp resolution: no node of the rig consumes it)")]
+    where = (f"; longest interval {stats.max_ms:.4g} ms" if stats.count else "") + (
+        f", last heartbeat {trailing_ms:.4g} ms before the end of the run"
+        if not math.isnan(trailing_ms) else "")
+    for name, time_ms, why in consumers:
+        c = add("bus.heartbeat.max_interval", silence_ms, {**node, "consumer": name},
+                f"the {name} expects a heartbeat within {time_ms:g} ms {why}{where}",
+                high=time_ms)
+        out["consumers"].append({"name": name, "time_ms": time_ms,
                                  "outcome": c.outcome.value})
     return out
 
