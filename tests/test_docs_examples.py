@@ -66,7 +66,13 @@ committed ones).
 (README's main job, ~25 s), after checking that it is the one README quotes; the script itself
 reinstalls the venv first, so it is not run as is. Everything else is in the default set:
 ~70 s on the 2-vCPU VM (three qualifications and the firmware build are most of it), ~95 s
-with the slow test.
+with the slow test; the fertilizer controller guide adds ~40 s (its C example built, its profile
+checked, the fast suite qualified over the software bus: ~25 s of it; measured on a quiet
+machine).
+
+``test_controller_guide_frames_are_the_databases`` holds the frame tables of the "Writing your
+own controller" guides to the rigs' databases, and ``test_example_controller_is_written_without_
+agrihil`` keeps the guide's C example to the C library and POSIX (no agrihil code).
 """
 
 from __future__ import annotations
