@@ -106,11 +106,18 @@ CLI_RANGES: dict[str, Range] = {
                                    why="a fraction of the measurement's tolerance band"),
     "run --step-timeout": Range("float", 0, 3600, low_open=True, unit="s",
                                 why="lockstep wait for the DUT's answer to SYNC"),
-    "bus --port": Range("int", 0, 65535, why="a TCP port (0: pick a free one)"),
-    "bus --bitrate": Range("int", 1, 1_000_000, unit="bit/s",
-                           why="classic CAN runs at up to 1 Mbit/s"),
+    "--port": Range("int", 0, 65535, why="a TCP port (0: pick a free one)"),
+    "bus serve --bitrate": Range("int", 10_000, 1_000_000, unit="bit/s",
+                                 why="the CAN bit rates (ISOBUS: 250000)"),
+    "bus serve --seed": Range("int", 0, 2**63 - 1, why="as --seed"),
+    "bus serve --busy-poll-us": Range("float", 0, 1_000_000, unit="us", why="0: off"),
     "bus fault --id": Range("int", 0, 0x1FFFFFFF, why="a CAN identifier: 11 or 29 bits"),
     "bus fault --mask": Range("int", 0, 0x1FFFFFFF, why="a mask over a 29-bit identifier"),
+    "bus fault --probability": Range("float", 0, 1, why="a probability"),
+    "bus fault --count": Range("int", 0, 2**31 - 1, why="0: every matching frame"),
+    "bus fault --delay": Range("float", 0, 3600, unit="s", why="with kind delay"),
+    "bus fault --rule": Range("int", 0, 2**31 - 1, why="a rule number of fault list"),
+    "bus fault -n": Range("int", 1, 10_000, why="error frames to send"),
 }
 
 #: every numeric key of a DUT profile, by ``table.key``

@@ -59,8 +59,53 @@ def load_campaign(path: str | Path) -> dict[str, Any]:
         found = doc.get("schema") if isinstance(doc, dict) else None
         raise ConfigError(f"not a campaign record (schema {found!r}, expected {SCHEMA})",
                           path=str(path), key="schema")
+    check_campaign_fields(doc, path=str(path))
     doc["_path"] = str(path)
     return doc
+
+
+#: a campaign's own verdicts (summary.verdict) and a sample's
+CAMPAIGN_VERDICTS = ("pass", "fail", "inconclusive", "error")
+SAMPLE_VERDICTS = ("pass", "fail", "error", "invalid-bench", "interrupted")
+STATUSES = ("running", "complete", "interrupted")
+
+
+def check_campaign_fields(doc: dict[str, Any], *, path: str) -> None:
+    """Check every field the gate reads, with its type; raise :class:`ConfigError` naming
+    the file and the key (a hand-edited or damaged record is refused, never a traceback)."""
+    from hil.gate.jsonfile import Fields
+
+    top = Fields(doc, path=path)
+    status = top.string("status")
+    if status not in STATUSES:
+        raise top.error("status", f"{status!r} is not one of {list(STATUSES)}")
+    requested = top.data.get("samples_requested")
+    if isinstance(requested, bool) or not isinstance(requested, int) or requested < 1:
+        raise top.error("samples_requested", f"expected an integer >= 1, got {requested!r}")
+    if not top.child("dut").string("name"):
+        raise top.error("dut.name", "must not be empty")
+    rig = top.child("rig", required=False)
+    rig.string("name", required=False)
+    summary = top.child("summary")
+    verdict = summary.string("verdict")
+    if verdict not in CAMPAIGN_VERDICTS:
+        raise summary.error("verdict", f"{verdict!r} is not one of {list(CAMPAIGN_VERDICTS)}")
+    summary.string("reason")
+    for i, item in enumerate(top.array("samples")):
+        sample = Fields(item, path=path, prefix=f"samples[{i}]")
+        sample_verdict = sample.string("verdict")
+        if sample_verdict not in SAMPLE_VERDICTS:
+            raise sample.error("verdict", f"{sample_verdict!r} is not one of "
+                                          f"{list(SAMPLE_VERDICTS)}")
+        for j, entry in enumerate(sample.array("measurements")):
+            m = Fields(entry, path=path, prefix=f"samples[{i}].measurements[{j}]")
+            if not m.string("name"):
+                raise m.error("name", "must not be empty")
+            m.number("value")
+            m.number("low", required=False)
+            m.number("high", required=False)
+            m.mapping("conditions", required=False)
+            m.string("outcome", required=False)
 
 
 def is_campaign(path: str | Path) -> bool:

@@ -16,6 +16,7 @@ from typing import Any
 from hil.dut.factory import check_bus_for_dut, in_process_bus
 from hil.errors import ConfigError
 from hil.softbus.server import DEFAULT_PORT
+from hil.validation import CLI_RANGES, help_with_range
 
 #: seeds go to numpy's SeedSequence (any non-negative integer) and into records and baselines
 #: as JSON/TOML integers (64-bit): 0 .. 2**63 - 1
@@ -29,7 +30,8 @@ __all__ = ["SEED_MAX", "add_bus_clock", "add_host_port", "check_bus_for_dut", "c
 def add_host_port(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--host", default="127.0.0.1", help="address (default: 127.0.0.1)")
     parser.add_argument("--port", type=port_number, default=DEFAULT_PORT,
-                        help=f"TCP port (default: {DEFAULT_PORT}; 0 picks a free one)")
+                        help=help_with_range("--port", f"TCP port (default: {DEFAULT_PORT}; "
+                                                       f"0 picks a free one)"))
 
 
 def add_bus_clock(parser: argparse.ArgumentParser) -> None:
@@ -56,7 +58,7 @@ def port_number(text: str) -> int:
 
 def check_seed(seed: int | None, option: str = "--seed") -> None:
     """Refuse a seed the seeding cannot take (negative, or beyond 64 bits)."""
-    if seed is not None and not 0 <= seed <= SEED_MAX:
+    if seed is not None and not CLI_RANGES["--seed"].contains(seed):
         raise ConfigError(f"{seed} is not a seed: give an integer 0 .. 2**63-1", key=option)
 
 

@@ -16,6 +16,7 @@ from hil.errors import ConfigError
 from hil.softbus.control import CONTROL_TOKEN_ENV, control
 from hil.softbus.faults import FaultKind
 from hil.softbus.server import SoftwareBus
+from hil.validation import help_with_range, option_type
 
 __all__ = ["add_subparser", "control"]
 
@@ -27,18 +28,25 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
 
     serve = sub.add_parser("serve", help="run a software bus (socketcand protocol on loopback)")
     add_host_port(serve)
-    serve.add_argument("--bitrate", type=int, default=None,
-                       help="pace frames to this bit rate with arbitration by id "
-                            "(e.g. 250000 for ISOBUS); default: unpaced")
+    serve.add_argument("--bitrate", type=option_type("bus serve --bitrate"), default=None,
+                       help=help_with_range("bus serve --bitrate",
+                                            "pace frames to this bit rate with arbitration "
+                                            "by id (e.g. 250000 for ISOBUS); default: "
+                                            "unpaced"))
     serve.add_argument("--log", default=None,
                        help="write every frame to this bus log (.log candump, .asc, .blf …)")
-    serve.add_argument("--seed", type=int, default=0, help="seed for probabilistic faults")
+    serve.add_argument("--seed", type=option_type("bus serve --seed"), default=0,
+                       help=help_with_range("bus serve --seed",
+                                            "seed for probabilistic faults"))
     serve.add_argument("--allow-remote", action="store_true",
                        help="allow binding to a non-loopback address")
-    serve.add_argument("--busy-poll-us", type=float, default=None, metavar="US",
-                       help="after traffic, poll this long before sleeping (cuts round-trip "
-                            "latency; no CPU when the bus is idle; 0: off; default: "
-                            "$AGRIHIL_SOFTBUS_BUSY_POLL_US or 200)")
+    serve.add_argument("--busy-poll-us", type=option_type("bus serve --busy-poll-us"),
+                       default=None, metavar="US",
+                       help=help_with_range("bus serve --busy-poll-us",
+                                            "after traffic, poll this long before sleeping "
+                                            "(cuts round-trip latency; no CPU when the bus "
+                                            "is idle; 0: off; default: "
+                                            "$AGRIHIL_SOFTBUS_BUSY_POLL_US or 200)"))
     serve.add_argument("--exit-with-stdin", action="store_true",
                        help="stop when stdin reaches EOF (a parent that holds the pipe's other "
                             "end takes the bus with it when it dies)")
@@ -49,14 +57,27 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
     fault.add_argument("action", choices=["add", "clear", "list", "errors"])
     fault.add_argument("kind", nargs="?", choices=[k.value for k in FaultKind],
                        help="with add: what to do to matching frames")
-    fault.add_argument("--id", type=lambda s: int(s, 0), default=None, help="frame id to match")
-    fault.add_argument("--mask", type=lambda s: int(s, 0), default=None,
-                       help="id mask (default: exact match when --id is given, else all)")
-    fault.add_argument("-p", "--probability", type=float, default=1.0)
-    fault.add_argument("--count", type=int, default=0, help="act on at most N frames (0: all)")
-    fault.add_argument("--delay", type=float, default=0.0, help="seconds, with kind delay")
-    fault.add_argument("--rule", type=int, default=None, help="with clear: only this rule")
-    fault.add_argument("-n", type=int, default=1, help="with errors: how many error frames")
+    fault.add_argument("--id", type=option_type("bus fault --id"), default=None,
+                       help=help_with_range("bus fault --id", "frame id to match (decimal or "
+                                                              "0x hexadecimal)"))
+    fault.add_argument("--mask", type=option_type("bus fault --mask"), default=None,
+                       help=help_with_range("bus fault --mask",
+                                            "id mask (default: exact match when --id is "
+                                            "given, else all)"))
+    fault.add_argument("-p", "--probability", type=option_type("bus fault --probability"),
+                       default=1.0, help=help_with_range("bus fault --probability",
+                                                         "chance per matching frame "
+                                                         "(default: 1)"))
+    fault.add_argument("--count", type=option_type("bus fault --count"), default=0,
+                       help=help_with_range("bus fault --count",
+                                            "act on at most N frames (0: all)"))
+    fault.add_argument("--delay", type=option_type("bus fault --delay"), default=0.0,
+                       help=help_with_range("bus fault --delay", "seconds, with kind delay"))
+    fault.add_argument("--rule", type=option_type("bus fault --rule"), default=None,
+                       help=help_with_range("bus fault --rule", "with clear: only this rule"))
+    fault.add_argument("-n", type=option_type("bus fault -n"), default=1,
+                       help=help_with_range("bus fault -n",
+                                            "with errors: how many error frames"))
     _add_token(fault)
     fault.set_defaults(func=_fault)
 

@@ -20,7 +20,6 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from hil.campaign.record import RECORD_NAME, SAMPLES_NAME
 from hil.cli.args import (
     add_bus_clock,
     check_bus_for_dut,
@@ -35,8 +34,11 @@ from hil.record.staging import Staging, signals_held
 from hil.validation import help_with_range, option_type
 
 EXIT_BY_VERDICT = {"pass": 0, "fail": 1, "inconclusive": 1, "error": 2}
-#: what a campaign writes into --out (moved in from its staging directory, the record last)
-OUTPUTS = (SAMPLES_NAME, "samples", "report.html")
+#: what a campaign writes into --out (moved in from its staging directory, the record last;
+#: the names of hil.campaign.record, not imported here: that would import scipy for every
+#: ``hil`` command)
+RECORD_NAME = "campaign.json"
+OUTPUTS = ("samples.jsonl", "samples", "report.html")
 STAGING_PREFIX = ".campaign-"
 #: the most samples rerun with full recording by default (--max-reruns)
 DEFAULT_MAX_RERUNS = 10

@@ -77,6 +77,10 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
 def _run(args: argparse.Namespace) -> int:
     from hil.campaign.record import is_campaign
 
+    if args.update_baseline and args.baseline:
+        check_writable_file(args.baseline, "--baseline", make_dirs=True)
+    if args.summary:
+        check_writable_file(args.summary, "--summary")
     # one rule for every record kind, before anything is judged: a record that did not
     # finish has no verdict (exit 2, saying why), with or without a baseline
     campaign = is_campaign(args.record)
@@ -92,10 +96,6 @@ def _run(args: argparse.Namespace) -> int:
         from hil.gate.campaign_cli import run_campaign_gate
 
         return run_campaign_gate(args)
-    if args.update_baseline and args.baseline:
-        check_writable_file(args.baseline, "--baseline", make_dirs=True)
-    if args.summary:
-        check_writable_file(args.summary, "--summary")
     record = load_record(args.record)
     tolerances = load_tolerances(args.tolerance) if args.tolerance else DEFAULT_TOLERANCES
     if args.update_baseline and not args.baseline:

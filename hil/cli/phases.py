@@ -15,9 +15,7 @@ from __future__ import annotations
 import os
 import signal
 
-import pytest
-
-__all__ = ["ENV", "PhaseMarks", "phase"]
+__all__ = ["ENV", "phase"]
 
 #: the environment variable naming the phase to interrupt
 ENV = "HIL_TEST_SIGNAL_AT"
@@ -42,14 +40,3 @@ def phase(name: str) -> None:
         else:
             os.kill(os.getpid(), signal.SIGINT)
 
-
-class PhaseMarks:
-    """A pytest plugin marking the phases inside the suites: ``qualify:test`` as each test
-    starts, ``qualify:record`` just before the session's record is written."""
-
-    def pytest_runtest_call(self) -> None:
-        phase("qualify:test")
-
-    @pytest.hookimpl(tryfirst=True)     # before the qualification writes its record
-    def pytest_sessionfinish(self) -> None:
-        phase("qualify:record")

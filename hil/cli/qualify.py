@@ -34,7 +34,7 @@ from hil.cli.args import (
     check_seed,
     prepare_out_dir,
 )
-from hil.cli.phases import PhaseMarks, phase
+from hil.cli.phases import phase
 from hil.cli.suites import suite_location
 from hil.dut.build import ensure_built, with_build_id
 from hil.dut.profile import DutProfile, load_profile
@@ -223,6 +223,8 @@ def _build(args: argparse.Namespace, profile: DutProfile) -> None:
 
 def _run_suites(args: argparse.Namespace, profile: DutProfile, stage: Path) -> int:
     import pytest
+
+    from hil.cli.phase_marks import PhaseMarks
 
     print(f"hil: qualifying {profile.name} {profile.dut.version} on the {profile.dut.rig} rig "
           f"({args.bus}, {args.clock}, suites {args.suite})", file=sys.stderr)

@@ -30,6 +30,7 @@ from hil.dut.profile import load_profile
 from hil.errors import ConfigError
 from hil.rig import Rig, RunOptions, available_rigs, load_rig, run_scenario
 from hil.rig.runner import check_events, check_run
+from hil.validation import help_with_range, option_type
 
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -49,8 +50,10 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
     run.add_argument("--build-id", default=None,
                      help="with a DUT profile: its build id for the record (a CI job passes "
                           "its commit); default: the profile's [dut] build_id")
-    run.add_argument("--step-timeout", type=float, default=2.0,
-                     help="lockstep: seconds to wait for the DUT's answer to SYNC")
+    run.add_argument("--step-timeout", type=option_type("run --step-timeout"), default=2.0,
+                     help=help_with_range("run --step-timeout",
+                                          "lockstep: seconds to wait for the DUT's answer to "
+                                          "SYNC (default: 2)"))
     run.set_defaults(func=_run)
 
 

@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import argparse
 import subprocess
 import sys
 
@@ -52,3 +53,36 @@ def test_a_bus_process_that_cannot_start_says_why_and_leaves_nothing_open() -> N
         assert second.proc.stdout is not None and second.proc.stdout.closed
     assert server.proc is not None and server.proc.stdout is not None
     assert server.proc.poll() is not None and server.proc.stdout.closed
+
+
+@pytest.mark.parametrize("argv", [
+    ["--id", "-1"], ["--id", "0x20000000"], ["--mask", "-1"], ["--mask", "0x40000000"],
+    ["--id", "1.5"], ["-p", "1.5"], ["-p", "nan"], ["--count", "-1"], ["--delay", "-0.1"],
+    ["--delay", "inf"]])
+def test_bus_fault_numbers_out_of_range_are_refused_naming_the_option(
+        argv: list[str], capsys: pytest.CaptureFixture[str]) -> None:
+    # before: --id -1 and --mask -1 installed a rule shown as id=0x-1; an id above 29 bits was
+    # masked down and matched id 0
+    assert main(["bus", "fault", "--port", "1", "add", "drop", *argv]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"argument {argv[0]}" in err[0], err
+    assert "range" in err[0] or "is not an" in err[0], err
+
+
+def test_every_numeric_option_has_its_range_in_the_help() -> None:
+    """The reference page is generated from these help texts (sphinx-argparse)."""
+    from hil.cli.main import build_parser
+    from hil.validation import CLI_RANGES
+
+    text = " ".join(" ".join(_all_help(build_parser())).split())   # argparse wraps lines
+    for rng in CLI_RANGES.values():
+        assert rng.describe() in text, rng
+
+
+def _all_help(parser: argparse.ArgumentParser) -> list[str]:
+    out = [parser.format_help()]
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                out += _all_help(sub)
+    return out

@@ -101,3 +101,11 @@ def test_reruns_are_proportionate_to_the_campaign() -> None:
     from hil.cli.campaign import default_max_reruns
 
     assert [default_max_reruns(n) for n in (1, 10, 19, 20, 100, 300)] == [1, 1, 1, 2, 10, 10]
+
+
+def test_the_staged_outputs_are_the_records_files() -> None:
+    from hil.campaign import record
+    from hil.cli import campaign
+
+    assert campaign.RECORD_NAME == record.RECORD_NAME
+    assert record.SAMPLES_NAME in campaign.OUTPUTS
