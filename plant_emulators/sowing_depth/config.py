@@ -397,9 +397,6 @@ class WiringConfig:
     depth_setpoint_period_ms: float
     controller_status_frame_id: int
     controller_status_period_ms: float
-    #: the binding of the rig quantities in force (:mod:`hil.contract.binding`); empty: the
-    #: rig's own, ``db/sowing_depth.binding.toml``. A DUT profile's ``[wiring] binding`` sets it.
-    binding_file: str = ""
 
     def __post_init__(self) -> None:
         if not 1 <= self.drive_node_id <= 127:

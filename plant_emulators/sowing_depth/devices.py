@@ -1,6 +1,8 @@
 """The sowing-depth rig's CAN nodes (and its GNSS serial port), as the controller sees them.
 
-Plain frames are encoded through the rig's DBC (:class:`FrameCodec`); the servo cylinder drive
+Plain frames carry the rig's quantities through the bus contract's codec
+(:class:`hil.contract.codec.ContractCodec`: the rig's DBC under its default binding, or the
+DUT's database under the profile's binding); the servo cylinder drive
 is a CANopen CiA 402 node on its EDS whose object dictionary entries are the drive logic's own
 (:class:`~plant_emulators.sowing_depth.cia402.Cia402Drive`).
 """
@@ -15,15 +17,9 @@ import canopen
 from hil.rig.canopen_device import CanopenDevice
 from hil.rig.device import PeriodicDevice
 from plant_emulators.sowing_depth.cia402 import OBJECTS, DriveObjectError
-from plant_emulators.sowing_depth.frames import (
-    DepthSetpoint,
-    DrawWireFrame,
-    FrameCodec,
-    GroundSpeed,
-    InclinometerFrame,
-)
 
 if TYPE_CHECKING:
+    from hil.contract.codec import ContractCodec
     from plant_emulators.sowing_depth.gnss_serial import GnssSerialPort
     from plant_emulators.sowing_depth.physics import SowingDepthPlant
     from plant_emulators.sowing_depth.sensors import DrawWireSensor, Inclinometer
@@ -73,9 +69,9 @@ class ServoDriveDevice(CanopenDevice):
 
 
 class DrawWireDevice(PeriodicDevice):
-    def __init__(self, plant: SowingDepthPlant, sensor: DrawWireSensor, codec: FrameCodec,
+    def __init__(self, plant: SowingDepthPlant, sensor: DrawWireSensor, codec: ContractCodec,
                  period_s: float) -> None:
-        super().__init__("draw-wire sensor", period_s)
+        super().__init__("draw-wire sensor", codec.period_s("roller_position", period_s))
         self.plant, self.sensor, self.codec = plant, sensor, codec
         self.counter = 0
 
@@ -84,8 +80,9 @@ class DrawWireDevice(PeriodicDevice):
         if position is None:       # the wire is lost: the node stops sending
             return []
         self.counter = (self.counter + 1) % 16
-        return [self.codec.encode(DrawWireFrame(roller_position_mm=position,
-                                                counter=self.counter))]
+        return self.codec.encode({"roller_position": position,
+                                  "roller_position_status": STATUS_OK,
+                                  "roller_position_counter": self.counter})
 
 
 class InclinometerDevice(PeriodicDevice):
@@ -96,9 +93,9 @@ class InclinometerDevice(PeriodicDevice):
     is sampled either way, so its noise stream stays the same as in a run without the fault.
     """
 
-    def __init__(self, plant: SowingDepthPlant, sensor: Inclinometer, codec: FrameCodec,
+    def __init__(self, plant: SowingDepthPlant, sensor: Inclinometer, codec: ContractCodec,
                  period_s: float) -> None:
-        super().__init__("inclinometer", period_s)
+        super().__init__("inclinometer", codec.period_s("inclinometer_x", period_s))
         self.plant, self.sensor, self.codec = plant, sensor, codec
         self.counter = 0
         self.last_x_mv = 0
@@ -114,34 +111,42 @@ class InclinometerDevice(PeriodicDevice):
         x_mv = 0 if self.x_open_circuit else reading.x_mv
         self.counter = (self.counter + 1) % 16
         self.last_x_mv = x_mv
-        return [self.codec.encode(InclinometerFrame(
-            x_mv=x_mv, y_mv=reading.y_mv,
-            x_status=_status(x_mv), y_status=_status(reading.y_mv),
-            counter=self.counter))]
+        return self.codec.encode({"inclinometer_x": x_mv, "inclinometer_y": reading.y_mv,
+                                  "inclinometer_x_status": _status(x_mv),
+                                  "inclinometer_y_status": _status(reading.y_mv),
+                                  "inclinometer_counter": self.counter})
 
 
-def _status(mv: int) -> str:
+#: status values of the rig's quantities (the value tables of ``sowing_depth.dbc``)
+STATUS_OK, STATUS_BELOW_RANGE, STATUS_ABOVE_RANGE = 0, 1, 2
+DIRECTION_FORWARD = 1
+ENABLE_OFF, ENABLE_ON = 0, 1
+MODE_MANUAL, MODE_AUTOMATIC = 0, 1
+
+
+def _status(mv: int) -> int:
     lo, hi = _INCLINOMETER_VALID_MV
-    return "below range" if mv < lo else "above range" if mv > hi else "ok"
+    return STATUS_BELOW_RANGE if mv < lo else STATUS_ABOVE_RANGE if mv > hi else STATUS_OK
 
 
 class TractorSpeedDevice(PeriodicDevice):
     """The tractor ECU's ground-based speed (ISO 11783 PGN 65097)."""
 
-    def __init__(self, plant: SowingDepthPlant, codec: FrameCodec, period_s: float) -> None:
-        super().__init__("tractor ground speed", period_s)
+    def __init__(self, plant: SowingDepthPlant, codec: ContractCodec, period_s: float) -> None:
+        super().__init__("tractor ground speed", codec.period_s("ground_speed", period_s))
         self.plant, self.codec = plant, codec
 
     def frames(self, time_s: float) -> list[can.Message]:
-        return [self.codec.encode(GroundSpeed(speed_mps=self.plant.ground_speed_mps,
-                                              distance_m=self.plant.distance_m))]
+        return self.codec.encode({"ground_speed": self.plant.ground_speed_mps,
+                                  "ground_distance": self.plant.distance_m,
+                                  "ground_direction": DIRECTION_FORWARD})
 
 
 class TerminalDevice(PeriodicDevice):
     """The CODESYS terminal sending the depth setpoint."""
 
-    def __init__(self, codec: FrameCodec, period_s: float) -> None:
-        super().__init__("terminal setpoint", period_s)
+    def __init__(self, codec: ContractCodec, period_s: float) -> None:
+        super().__init__("terminal setpoint", codec.period_s("target_depth", period_s))
         self.codec = codec
         self.target_depth_mm = 30.0
         self.enable = True
@@ -151,11 +156,12 @@ class TerminalDevice(PeriodicDevice):
 
     def frames(self, time_s: float) -> list[can.Message]:
         self.counter = (self.counter + 1) % 16
-        return [self.codec.encode(DepthSetpoint(
-            target_depth_mm=self.target_depth_mm,
-            manual_roller_position_mm=self.manual_roller_position_mm,
-            enable="on" if self.enable else "off",
-            mode="manual" if self.manual else "automatic", counter=self.counter))]
+        return self.codec.encode({
+            "target_depth": self.target_depth_mm,
+            "manual_roller_position": self.manual_roller_position_mm,
+            "depth_enable": ENABLE_ON if self.enable else ENABLE_OFF,
+            "depth_mode": MODE_MANUAL if self.manual else MODE_AUTOMATIC,
+            "setpoint_counter": self.counter})
 
 
 class GnssDevice(PeriodicDevice):

@@ -466,8 +466,9 @@ def _quantities() -> tuple[Any, ...]:
     )
 
 
-def bus_contract(config: Any = None) -> Any:
-    """The sowing-depth rig's bus contract under ``config`` (default: the packaged one)."""
+def bus_contract(config: Any = None, binding_file: str = "") -> Any:
+    """The sowing-depth rig's bus contract under ``config`` (default: the packaged one) with
+    the binding ``binding_file`` in force (default: the rig's own)."""
     from hil.contract.quantity import CanopenNode, Contract
     from plant_emulators.sowing_depth.config import load_rig_config
 
@@ -483,7 +484,7 @@ def bus_contract(config: Any = None) -> Any:
                    for n, base in enumerate((0x200, 0x300, 0x400, 0x500), 1)}}
     return Contract(
         rig="sowing_depth", quantities=_quantities(), rows=1,
-        binding_file=Path(w.binding_file) if w.binding_file else DEFAULT_BINDING,
+        binding_file=Path(binding_file) if binding_file else DEFAULT_BINDING,
         default_binding_file=DEFAULT_BINDING, dut_node="DepthController",
         canopen_nodes=(CanopenNode("servo drive", drive, EDS_PATH),),
         bitrate_bps=w.bitrate_bit_per_s,

@@ -9,6 +9,7 @@ from typing import Any, ClassVar
 import can
 import numpy as np
 
+from hil.contract.codec import ContractCodec
 from hil.errors import ConfigError
 from hil.rig import Rig, RigContext
 from plant_emulators.sowing_depth.cia402_objects import ErrorCode
@@ -22,7 +23,7 @@ from plant_emulators.sowing_depth.devices import (
     TerminalDevice,
     TractorSpeedDevice,
 )
-from plant_emulators.sowing_depth.frames import EDS_PATH, FrameCodec
+from plant_emulators.sowing_depth.frames import EDS_PATH
 from plant_emulators.sowing_depth.gnss_serial import GnssSerialPort
 from plant_emulators.sowing_depth.nmea import GnssReceiver
 from plant_emulators.sowing_depth.physics import SowingDepthPlant
@@ -73,7 +74,7 @@ class SowingDepthRig(Rig):
     @classmethod
     def load_config(cls, overrides: Mapping[str, Any] | None = None, *,
                     source: str = "") -> SowingDepthRigConfig:
-        return load_rig_config(overrides=overrides, source=source)
+        return load_rig_config(overrides=_without_binding(overrides)[0], source=source)
 
     @classmethod
     def bus_contract(cls, overrides: Mapping[str, Any] | None = None,
@@ -81,18 +82,27 @@ class SowingDepthRig(Rig):
         """The rig's bus contract (quantities, binding in force, nodes) under ``overrides``."""
         from plant_emulators.sowing_depth.frames import bus_contract
 
-        return bus_contract(load_rig_config(overrides=overrides, source=source))
+        rest, binding = _without_binding(overrides)
+        return bus_contract(load_rig_config(overrides=rest, source=source), binding)
+
+    @staticmethod
+    def contract_codec(config: SowingDepthRigConfig, binding_file: str = "") -> ContractCodec:
+        """The codec of the binding in force (J1939 frames: unused bits sent as 1s, as the
+        rig's own codec always did)."""
+        from plant_emulators.sowing_depth.frames import bus_contract
+
+        return ContractCodec.for_contract(bus_contract(config, binding_file), padding="always")
 
     def __init__(self, ctx: RigContext, config: SowingDepthRigConfig | None = None) -> None:
         super().__init__(ctx)
-        cfg = config or load_rig_config(overrides=ctx.config_overrides,
-                                        source=ctx.config_source)
+        overrides, binding_file = _without_binding(ctx.config_overrides)
+        cfg = config or load_rig_config(overrides=overrides, source=ctx.config_source)
         self.config = cfg
         wiring = cfg.wiring
         self.control_period_s = wiring.sync_period_ms / 1000.0
         plant_rng, incl_rng, wire_rng, gnss_rng = ctx.rng.spawn(4)
         self.plant = SowingDepthPlant(cfg, plant_rng)
-        self.codec = FrameCodec()
+        self.codec = self.contract_codec(cfg, binding_file)
         self.inclinometer = Inclinometer(cfg.inclinometer, incl_rng)
         self.draw_wire = DrawWireSensor(cfg.draw_wire, wire_rng)
         self.receiver = GnssReceiver(cfg.gnss, gnss_rng)
@@ -246,3 +256,19 @@ class SowingDepthRig(Rig):
     @classmethod
     def builtin_controllers(cls) -> dict[str, Callable[[], object]]:
         return {"pi": PiDepthController}
+
+
+def _without_binding(overrides: Mapping[str, Any] | None) -> tuple[dict[str, Any], str]:
+    """``overrides`` without ``wiring.binding_file`` (a profile's ``[wiring] binding``, which
+    the rig's config does not hold), and that file ("" when none)."""
+    rest = dict(overrides or {})
+    wiring = rest.get("wiring")
+    if not isinstance(wiring, Mapping) or "binding_file" not in wiring:
+        return rest, ""
+    wiring = dict(wiring)
+    binding = str(wiring.pop("binding_file"))
+    if wiring:
+        rest["wiring"] = wiring
+    else:
+        del rest["wiring"]
+    return rest, binding
