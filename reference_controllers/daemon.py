@@ -13,6 +13,9 @@
   are skipped and counted). SYNC frames are then ignored. Without either flag the daemon
   follows ``$AGRIHIL_CLOCK`` (``lockstep`` → ``--sync``) or free-runs at the controller's
   contract period (100 ms fertilizer, 10 ms depth).
+* ``--mark-steps``: lockstep only. Send the step-end frame (extended id 0x1FFFFFF0, no data,
+  :data:`hil.clock.STEP_END_ID`) once after the boot-up and after each answer to SYNC, so
+  the rig ends each step there instead of at the command frame (docs/guide/clocks.md).
 * ``--param key=value`` (repeatable): the controller's parameters; an unknown key is an error
   that names it (exit 2), as is any other bad argument.
 * ``$AGRIHIL_GNSS_PORT``: the depth controller reads the GNSS receiver's NMEA there.
@@ -40,6 +43,7 @@ from types import FrameType
 import can
 
 from hil.bus import open_bus, parse_spec
+from hil.clock.sync import STEP_END_ID, SYNC_ID
 from hil.dut import Controller
 from hil.errors import BusError, BusSpecError
 from reference_controllers.params import ParamError, ParamValue
@@ -102,6 +106,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="lockstep: one control step per SYNC frame")
     timing.add_argument("--period-ms", type=float, default=None,
                         help="free-running: one control step every N ms")
+    parser.add_argument("--mark-steps", action="store_true",
+                        help="lockstep: end each answer to SYNC with the step-end frame")
     parser.add_argument("--param", action="append", default=[], metavar="KEY=VALUE")
     return parser
 
@@ -110,9 +116,12 @@ class Daemon:
     """The receive/step/send loop of one controller on one bus."""
 
     def __init__(self, controller: Controller, bus: can.BusABC, *, sync: bool,
-                 period_s: float, stop: Stop, clock: Callable[[], float] = time.monotonic
-                 ) -> None:
+                 period_s: float, stop: Stop, clock: Callable[[], float] = time.monotonic,
+                 mark_steps: bool = False) -> None:
         self.controller = controller
+        #: lockstep: the step-end frame after the boot-up and after each answer to SYNC
+        self.step_end = ([can.Message(arbitration_id=STEP_END_ID, is_extended_id=True, data=b"")]
+                         if mark_steps and sync else [])
         self.bus = bus
         self.sync = sync
         self.period_s = period_s
@@ -141,10 +150,14 @@ class Daemon:
         if msg is not None and not self.stop.requested:
             self.frames_in += 1
             self.send(self.controller.on_frame(msg))
+            if (self.step_end and msg.arbitration_id == SYNC_ID and not msg.is_extended_id
+                    and not msg.is_error_frame):
+                self.send(self.step_end)
 
     def run(self) -> None:
         self.send(self.controller.on_start())
         if self.sync:
+            self.send(self.step_end)    # announces it (docs/guide/clocks.md)
             while not self.stop.requested:
                 self.receive(RECV_SLICE_S)
             return
@@ -196,6 +209,7 @@ def main(argv: list[str] | None = None) -> int:
     shown = " ".join(f"{k}={v}" for k, v in params.items()) or "defaults"
     try:
         return serve(controller, args.bus, sync=sync, period_s=period_s, stop=stop, logger=log,
+                     mark_steps=args.mark_steps,
                      started=f"{args.controller} on {args.bus}, {timing}, parameters: {shown} "
                              f"(pid {os.getpid()})")
     except BusSpecError as exc:
@@ -203,7 +217,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def serve(controller: Controller, spec: str, *, sync: bool, period_s: float, stop: Stop,
-          logger: logging.Logger, started: str, log_traceback: bool = True) -> int:
+          logger: logging.Logger, started: str, log_traceback: bool = True,
+          mark_steps: bool = False) -> int:
     """Configure ``controller``, open its bus and run :class:`Daemon` until stopped.
 
     The one run loop of every daemon (the reference daemon and the must-fail ones): the bus
@@ -223,6 +238,8 @@ def serve(controller: Controller, spec: str, *, sync: bool, period_s: float, sto
         The start line (what runs, where, how).
     log_traceback : bool
         Log a controller's exception with its traceback.
+    mark_steps : bool
+        In lockstep, send the step-end frame after the boot-up and after each answer to SYNC.
 
     Returns
     -------
@@ -243,7 +260,8 @@ def serve(controller: Controller, spec: str, *, sync: bool, period_s: float, sto
         return 1
     logger.info("%s", started)
     try:
-        Daemon(controller, bus, sync=sync, period_s=period_s, stop=stop).run()
+        Daemon(controller, bus, sync=sync, period_s=period_s, stop=stop,
+               mark_steps=mark_steps).run()
     except (can.CanError, OSError) as exc:
         logger.error("bus failed: %s", exc)
         return 1

@@ -343,8 +343,10 @@ size_t depth_step(depth_adapter_t *a, double now_s, hal_can_frame_t out[DEPTH_MA
         out[n].data[0] = NMT_OPERATIONAL;
         n++;
     }
-    /* the command frame goes last: in lockstep it closes the step (the rig's SYNC barrier
-     * waits for it), so the status and heartbeat must be on the bus before it */
+    /* the command frame goes last: in lockstep it ends the step (the rig's SYNC barrier
+     * waits for it), so the status and heartbeat go on the bus before it. A DUT that sends
+     * its frames in another order ends each step with the step-end frame instead
+     * (HAL_CAN_STEP_END_ID; docs/guide/clocks.md, "Where a step ends") */
     struct servo_cylinder_pdo_rpdo2_t pdo;
     memset(&pdo, 0, sizeof pdo);
     pdo.controlword = cw;

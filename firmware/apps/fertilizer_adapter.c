@@ -231,8 +231,10 @@ size_t fert_step(fert_adapter_t *a, double now_s, hal_can_frame_t out[FERT_MAX_O
     fertilizer_controller_heartbeat_pack(out[n].data, &hb, sizeof out[n].data);
     n++;
 
-    /* the command frame goes last: in lockstep it closes the step (the rig's SYNC barrier
-     * waits for it), so the status and heartbeat must be on the bus before it */
+    /* the command frame goes last: in lockstep it ends the step (the rig's SYNC barrier
+     * waits for it), so the status and heartbeat go on the bus before it. A DUT that sends
+     * its frames in another order ends each step with the step-end frame instead
+     * (HAL_CAN_STEP_END_ID; docs/guide/clocks.md, "Where a step ends") */
     struct fertilizer_analog_output_command_t cmd = {0, 0};
     /* round half to even (rint in the default rounding mode), as Python's round() */
     cmd.ch1_output = (int16_t)rint(clamp(info->out.volts, 0.0, 10.0) * 1000.0);

@@ -36,6 +36,12 @@ typedef struct {
     uint8_t data[8];
 } hal_can_frame_t;
 
+/* The lockstep step-end frame (extended id, no data; hil.clock.STEP_END_ID): a DUT that does
+ * not send its command frame last sends one after its boot-up and one after each answer to
+ * SYNC (docs/guide/clocks.md, "Where a step ends"). The reference adapters send the command
+ * last and do not need it. */
+#define HAL_CAN_STEP_END_ID 0x1FFFFFF0u
+
 #define HAL_CAN_RXBUF 4096
 #define HAL_CAN_TXBUF 2048
 #define HAL_CAN_ERRLEN 256

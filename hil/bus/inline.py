@@ -33,6 +33,10 @@ class InlineBus(can.BusABC):
         Passed to ``can.BusABC``.
     """
 
+    #: the other end's answers are queued within ``send``: none can arrive late (the lockstep
+    #: barrier takes frames after the command frame as in order, see hil.clock.sync)
+    answers_synchronously = True
+
     def __init__(self, handler: FrameHandler, channel: str = "inline", **kwargs: Any) -> None:
         self._handler = handler
         self._rx: deque[can.Message] = deque()

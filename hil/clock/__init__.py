@@ -2,17 +2,17 @@
 
 :class:`RealtimeClock` steps against absolute wall-clock deadlines and records its own timing
 health; :class:`LockstepClock` advances virtual time only when the step's participants (the
-DUT answering SYNC) are done. Plants, metrics and suites never read the wall clock: they ask
-the clock.
+DUT answering SYNC, up to its command frame or its step-end frame) are done. Plants, metrics
+and suites never read the wall clock: they ask the clock.
 """
 
 from hil.clock.base import Clock, TimingHealth, TimingLimits
 from hil.clock.lockstep import LockstepClock
 from hil.clock.realtime import RealtimeClock
-from hil.clock.sync import SyncBarrier
+from hil.clock.sync import STEP_END_ID, StepOrderError, SyncBarrier, is_step_end
 
-__all__ = ["Clock", "LockstepClock", "RealtimeClock", "SyncBarrier", "TimingHealth",
-           "TimingLimits", "make_clock"]
+__all__ = ["STEP_END_ID", "Clock", "LockstepClock", "RealtimeClock", "StepOrderError",
+           "SyncBarrier", "TimingHealth", "TimingLimits", "is_step_end", "make_clock"]
 
 
 def make_clock(mode: str, period_s: float = 0.001) -> Clock:

@@ -2,7 +2,8 @@
 
 Each tick the physics advances; scenario events apply; devices whose time has come send their
 frames; traces get a row when due; then the clock completes the step: SYNC goes out when due
-and, in lockstep, the step waits for the DUT's command frames. In lockstep the loop jumps
+and, in lockstep, the step waits for the DUT's command frames (or its step-end frame, see
+:mod:`hil.clock.sync`). In lockstep the loop jumps
 straight from one due time to the next (several physics steps per call, the same floats as
 single steps), which is what makes a 60 s run take a fraction of a second.
 
@@ -27,7 +28,7 @@ import numpy as np
 
 from hil.bus import open_bus
 from hil.bus.inline import InlineBus
-from hil.clock import SyncBarrier, make_clock
+from hil.clock import StepOrderError, SyncBarrier, is_step_end, make_clock
 from hil.dut.base import DutError, DutRunner, DutSetupError, DutStopped
 from hil.dut.inprocess import InProcessDut
 from hil.errors import BusError, ConfigError, StepTimeoutError
@@ -240,6 +241,8 @@ class _Loop:
         #: answering (a DUT silent by design, a CANopen master's test, say, is left alone)
         self.last_command_s: float | None = None
         self.silence_limit_s = options.step_timeout_s
+        #: lockstep: the first frame that straddled two steps, raised a control period later
+        self._straddle: StepOrderError | None = None
 
     def _log(self, msg: can.Message, *, rx: bool) -> None:
         self._log_frame(msg, self._now(), rx=rx)
@@ -266,6 +269,9 @@ class _Loop:
         self._log(msg, rx=False)
 
     def intake(self, msg: can.Message) -> None:
+        if is_step_end(msg):    # bench control (lockstep's barrier reads it), not traffic
+            self.barrier.step_ends += 1
+            return
         self.frames_rx += 1
         self._log(msg, rx=True)
         if msg.arbitration_id in self.command_ids:
@@ -307,6 +313,27 @@ class _Loop:
                 return
             self.intake(msg)
 
+    def drain_after_step(self) -> None:
+        """Lockstep, after a step ended: read what is there, which must not be the DUT's.
+
+        The DUT only answers what the rig sends, and has said its step is over; a frame of its
+        own now straddles two steps (:meth:`hil.clock.SyncBarrier.late_frame_error`). The
+        first such frame is logged and its error raised one control period later, so that a
+        more specific verdict on the same frames (a flood) can come first.
+        """
+        if self._straddle is not None:
+            raise self._straddle
+        late_frame_error, t = self.barrier.late_frame_error, self.clock.time_s
+        while True:
+            msg = self.bus.recv(0.0)
+            if msg is None:
+                return
+            if not is_step_end(msg):
+                self.intake(msg)
+            error = late_frame_error(msg, t)
+            if self._straddle is None:
+                self._straddle = error
+
     def run(self) -> None:
         rig, scenario, dt = self.rig, self.scenario, self.dt
         ticks_total = round(scenario.duration_s / dt)
@@ -330,6 +357,7 @@ class _Loop:
         append_row = self.rec.traces.append
         # the loop runs 100 times per simulated second: what it calls, bound once
         send, drain, advance = self.send, self.drain, rig.advance
+        drain_after_step = self.drain_after_step
         clock, barrier = self.clock, self.barrier
         complete_step, tick, batches = clock.complete_step, clock.tick, clock.batches
         sync_next_due, sync_due = barrier.next_due, barrier.due
@@ -366,14 +394,16 @@ class _Loop:
                         append_row(t, [signals[name][0] for name in trace_names])
                 complete_step()
                 if k >= ticks_total:
+                    if self._straddle is not None:
+                        raise self._straddle
                     break
                 target = min(ticks_total, sync_next_due(k), (k // trace_ticks + 1) * trace_ticks,
                              next_device, event_tick)
                 if batches:
-                    # lockstep: the DUT only acts on what the rig sends, so its unawaited frames
-                    # (status, heartbeat) are collected once per control period, after SYNC
+                    # lockstep: the DUT only acts on what the rig sends, and the barrier read
+                    # its whole step; what is left now straddles two steps (an error)
                     if sync_due(k):
-                        drain()
+                        drain_after_step()
                     n = max(1, target - k)
                     k = tick(n)
                     advance(n, dt)
@@ -418,6 +448,7 @@ class _Loop:
             if self.restart_dut is None:
                 raise ConfigError("this run cannot restart its DUT", key="events.dut")
             before = self.restart_dut()
+            self.barrier.dut_restarted()    # it announces its step-end frames afresh
             self.last_command_s = self.clock.time_s    # a fresh DUT: its silence starts now
             self.rig.ctx.note(t, "dut-restart", f"the DUT was restarted (before: "
                               f"{before.get('exit', before.get('kind', '?'))})")
@@ -505,6 +536,9 @@ def _dut_stopped(exc: BaseException, t: float) -> tuple[str, dict[str, Any]]:
         if detail:
             line += f"; {detail[-600:]}"
         return line, {"t_s": round(at, 3), "what": exc.what}
+    if isinstance(exc, StepOrderError):
+        return (f"the DUT's frames straddle lockstep steps at t = {t:.1f} s ({exc})",
+                {"t_s": round(t, 3), "what": "frames straddle lockstep steps"})
     if isinstance(exc, StepTimeoutError):
         return (f"the DUT stopped answering at t = {t:.1f} s ({exc})",
                 {"t_s": round(t, 3), "what": "stopped answering"})
@@ -639,12 +673,17 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
         loop.check_dut = dut.check
         if options.clock == "lockstep":
             loop.barrier.alive = dut.check    # a crash ends the step at once, named
+            # a Python controller in a thread of this process answers SYNC with frames in any
+            # order and cannot mark its steps (hil.dut.inprocess does not send the step-end
+            # frame): its frames after the command are read as they come, as before (only
+            # the inline bus, which calls it directly, makes its runs reproducible)
+            loop.barrier.check_order = not isinstance(dut, InProcessDut)
         try:
             if start_failure is not None:
                 raise start_failure
             loop.run()
             dut.check()
-        except (StepTimeoutError, DutError) as exc:
+        except (StepTimeoutError, StepOrderError, DutError) as exc:
             # the run ended because of the DUT: the record says so and the caller gets
             # the record of a failed run, not a traceback
             rec.verdict = Verdict.ERROR
@@ -658,6 +697,8 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
             if truth_arrays and options.save_traces:
                 write_npz(options.out_dir / "truth.npz", truth_arrays)
             rec.meta["frames"] = {"tx": loop.frames_tx, "rx": loop.frames_rx}
+            if loop.barrier.step_ends:  # only a DUT that marks its steps: others' records
+                rec.meta["frames"]["step_ends"] = loop.barrier.step_ends   # stay as they were
             rec.meta["wall_s"] = time.perf_counter() - wall0
             rec.meta["sim_s"] = sim_s
     wall = time.perf_counter() - wall0

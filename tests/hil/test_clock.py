@@ -8,7 +8,15 @@ import numpy as np
 import pytest
 
 from hil.bus import open_bus
-from hil.clock import LockstepClock, RealtimeClock, SyncBarrier, TimingLimits, make_clock
+from hil.clock import (
+    STEP_END_ID,
+    LockstepClock,
+    RealtimeClock,
+    StepOrderError,
+    SyncBarrier,
+    TimingLimits,
+    make_clock,
+)
 from hil.clock.base import TimingHealth
 from hil.errors import ClockError, ConfigError, StepTimeoutError
 
@@ -147,3 +155,122 @@ def test_realtime_barrier_only_sends_sync() -> None:
     finally:
         rig_bus.shutdown()
         listener.shutdown()
+
+
+# --- where a step ends: the command frame, or the DUT's step-end frame ------------------------
+
+class _ScriptedDut(can.BusABC):
+    """The rig's bus to a DUT that answers SYNC ``n`` with ``answers[n]`` (queued at once)."""
+
+    def __init__(self, boot: list[int], answers: list[list[int]]) -> None:
+        self._rx = [_frame(i) for i in boot]
+        self._answers = answers
+        self._syncs = 0
+        super().__init__(channel="scripted")
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        assert msg.arbitration_id == 0x080
+        self._rx += [_frame(i) for i in self._answers[self._syncs]]
+        self._syncs += 1
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        return (self._rx.pop(0) if self._rx else None), False
+
+
+def _frame(can_id: int) -> can.Message:
+    if can_id == STEP_END_ID:
+        return can.Message(arbitration_id=STEP_END_ID, is_extended_id=True, data=b"")
+    return can.Message(arbitration_id=can_id, is_extended_id=False, data=b"\x05")
+
+
+END = STEP_END_ID
+
+
+def _steps(bus: _ScriptedDut, n: int) -> tuple[SyncBarrier, list[list[int]]]:
+    """``n`` lockstep steps; each step's dispatched ids, then what was left on the bus."""
+    steps: list[list[int]] = []
+    barrier = SyncBarrier(bus, period_ticks=1, await_ids=[0x220], timeout_s=0.05,
+                          dispatch=lambda m: steps[-1].append(m.arbitration_id))
+    for k in range(n):
+        steps.append([])
+        barrier.complete(k, k * 0.1, wait=True)
+        while (msg := bus.recv(0.0)) is not None:
+            error = barrier.late_frame_error(msg, k * 0.1)
+            if error is not None:
+                raise error
+    return barrier, steps
+
+
+def test_a_dut_that_marks_its_steps_may_send_its_command_first() -> None:
+    bus = _ScriptedDut([0x710, END], [[0x220, 0x1A0, 0x710, END]] * 3)
+    barrier, steps = _steps(bus, 3)
+    assert barrier.marks_steps and barrier.step_ends == 4
+    assert steps == [[0x710, 0x220, 0x1A0, 0x710], [0x220, 0x1A0, 0x710],
+                     [0x220, 0x1A0, 0x710]]
+
+
+def test_without_step_end_frames_the_command_ends_the_step() -> None:
+    bus = _ScriptedDut([0x710], [[0x1A0, 0x710, 0x220]] * 2)
+    barrier, steps = _steps(bus, 2)
+    assert not barrier.marks_steps and barrier.step_ends == 0
+    assert steps == [[0x710, 0x1A0, 0x710, 0x220], [0x1A0, 0x710, 0x220]]
+
+
+def test_a_frame_after_the_command_names_the_cause_and_the_fix() -> None:
+    bus = _ScriptedDut([0x710], [[0x220, 0x710]])
+    with pytest.raises(StepOrderError) as err:
+        _steps(bus, 1)
+    text = str(err.value)
+    assert "t=0.000 s" in text and "frame 0x710 after its command frame 0x220" in text
+    assert "send the command frame last" in text
+    assert "step-end frame (extended id 0x1FFFFFF0, no data)" in text and "after boot-up" in text
+    assert "docs/guide/clocks.md" in text
+
+
+@pytest.mark.parametrize(("boot", "answers", "match"), [
+    # the first step-end frame after the first command: too late to count as an announcement
+    ([0x710], [[0x220, END]], "first step-end frame 0x1FFFFFF0 came after its first command"),
+    # announced, then a step ended before its command frame
+    ([0x710, END], [[0x220, END], [END, 0x220]],
+     r"ended its step \(step-end frame 0x1FFFFFF0\) before its command frame 0x220"),
+    # announced, then a frame after the step-end frame
+    ([0x710, END], [[0x220, END, 0x710]], "sent frame 0x710 after its step-end frame"),
+    # announced, then two step-end frames in a step
+    ([0x710, END], [[0x220, END, END]], "second step-end frame"),
+])
+def test_a_misplaced_step_end_frame_is_named(boot: list[int], answers: list[list[int]],
+                                             match: str) -> None:
+    with pytest.raises(StepOrderError, match=match):
+        _steps(_ScriptedDut(boot, answers * 2), 2)
+
+
+def test_a_dut_that_announced_but_never_ends_its_step_times_out_naming_the_frame() -> None:
+    with pytest.raises(StepTimeoutError, match="its step-end frame 0x1FFFFFF0 did not"):
+        _steps(_ScriptedDut([0x710, END], [[0x220]]), 1)
+
+
+def test_a_restarted_dut_announces_afresh() -> None:
+    bus = _ScriptedDut([0x710, END], [[0x220, END], [0x710, 0x220]])
+    barrier, _ = _steps(bus, 1)
+    barrier.dut_restarted()     # the new DUT does not mark its steps: its command ends them
+    barrier.complete(1, 0.1, wait=True)
+    assert not barrier.marks_steps
+
+
+def test_frames_after_the_command_are_in_order_on_a_synchronous_bus() -> None:
+    """The inline bus queues a controller's whole answer within ``send``: nothing is late."""
+    from hil.bus.inline import InlineBus
+
+    bus = InlineBus(lambda msg: [_frame(0x220), _frame(0x710)] if msg.arbitration_id == 0x080
+                    else [])
+    barrier = SyncBarrier(bus, period_ticks=1, await_ids=[0x220], dispatch=lambda m: None)
+    barrier.complete(0, 0.0, wait=True)
+    msg = bus.recv(0.0)
+    assert msg is not None and barrier.late_frame_error(msg, 0.0) is None
+
+
+def test_the_firmware_hal_names_the_same_step_end_frame() -> None:
+    from pathlib import Path
+
+    header = (Path(__file__).resolve().parents[2] / "firmware" / "hal" / "hal_can.h").read_text()
+    assert f"#define HAL_CAN_STEP_END_ID 0x{STEP_END_ID:X}u" in header
