@@ -3,7 +3,8 @@
 # Idempotent; uses a virtualenv at .venv unless AGRIHIL_NO_VENV=1 (then the current Python).
 #
 # System packages (Chromium for the report's browser test; user-mode-linux, kmod and iproute2
-# for the kernel CAN guest, scripts/kernel-can.sh) are installed with apt only when asked:
+# for the kernel CAN guest, scripts/kernel-can.sh; can-utils for the bus log's asc2log check,
+# with the de_DE locale asc2log reads ASC dates through) are installed with apt only when asked:
 #   bash scripts/setup.sh --system-packages     (explicitly), or
 #   CI=1, running as root with apt-get          (a CI job on a Debian-based image).
 # Otherwise nothing is installed system-wide; the script says what is missing and how to add it.
@@ -11,13 +12,13 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-SYSTEM_PACKAGES=(chromium user-mode-linux kmod iproute2)
+SYSTEM_PACKAGES=(chromium user-mode-linux kmod iproute2 can-utils locales)
 system="auto"
 for arg in "$@"; do
     case "$arg" in
         --system-packages) system="yes" ;;
         --no-system-packages) system="no" ;;
-        -h|--help) sed -n '2,11p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,12p' "$0"; exit 0 ;;
         *) echo "setup.sh: unknown argument '$arg' (known: --system-packages," \
                 "--no-system-packages)" >&2; exit 2 ;;
     esac
@@ -59,13 +60,27 @@ install_system_packages() {
     "${sudo[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends $missing
 }
 
+# can-utils' asc2log reads an ASC file's 24-hour date line with setlocale(LC_TIME, "de_DE") and,
+# without that locale, stamps the log with the current time (tests/hil/record/test_buslog_time.py)
+make_asc2log_locale() {
+    if locale -a 2>/dev/null | grep -qx 'de_DE'; then
+        return 0
+    fi
+    local sudo=()
+    if [[ "$(id -u)" != "0" ]]; then sudo=(sudo); fi
+    echo "setup.sh: making the de_DE locale for asc2log (localedef)" >&2
+    "${sudo[@]}" localedef -i de_DE -f ISO-8859-1 de_DE
+}
+
 case "$system" in
     yes)
         install_system_packages
+        make_asc2log_locale
         ;;
     auto)
         if [[ -n "${CI:-}" && "$(id -u)" == "0" ]] && command -v apt-get >/dev/null 2>&1; then
             install_system_packages
+            make_asc2log_locale
         elif command -v dpkg-query >/dev/null 2>&1; then
             missing="$(missing_system_packages)"
             if [[ -n "$missing" ]]; then

@@ -17,9 +17,11 @@ its python-can writer on probe frames when the log is opened, and a writer whose
 (another python-can version, say) gets every frame the ordinary way.
 
 Time: frames carry the run's clock (seconds from the run's start). The ``.asc`` trigger block
-is dated with the wall-clock time of its first frame (the run's start plus that frame's run
-time), not python-can's ``datetime.fromtimestamp(first time stamp)``, which dated it 1970: so
-``ASCReader(relative_timestamp=False)`` and can-utils ``asc2log`` place the log in time.
+and the header's ``date`` line are dated with the wall-clock time of the first frame (the run's
+start plus that frame's run time), not python-can's ``datetime.fromtimestamp(first time
+stamp)``, which dated the trigger block 1970, nor the time the file was opened, which dated the
+``date`` line: so ``ASCReader(relative_timestamp=False)`` and can-utils ``asc2log`` (which reads
+the ``date`` line, where it can parse it: see docs/guide/kernel-can.md) place the log in time.
 """
 
 from __future__ import annotations
@@ -178,15 +180,37 @@ def _stamped(msg: can.Message, time_s: float, *, rx: bool, channel: str) -> can.
 _BATCH = 1024
 
 
+def _redate_asc_header(writer: ASCWriter, when: str) -> None:
+    """Date the file's ``date`` line as its trigger block, in place.
+
+    In the ASC format the ``date`` line is when the measurement started, and with
+    ``timestamps absolute`` every time stamp counts from it; the trigger block of a recording
+    that starts with the measurement has the same date. python-can's writer dates it with the
+    wall clock when the file is opened, which is neither the run's start given to the log nor
+    the first frame's time: can-utils' ``asc2log`` takes that line as time zero, so it placed a
+    log whose run started earlier (a replayed or test start time) at the moment the file was
+    written. Only the header is in the file yet, and the new date has the old one's width
+    (the same fixed-width format), so it is overwritten where it stands.
+    """
+    line = f"date {when}\n"
+    file = writer.file
+    file.flush()
+    end = file.tell()
+    file.seek(0)
+    file.write(line)
+    file.seek(end)
+
+
 def _begin_asc_trigger_block(writer: ASCWriter, first_s: float, start_epoch_s: float) -> None:
     """What ``ASCWriter.log_event`` writes before its first frame, dated by the run's start.
 
-    The trigger block is dated ``start_epoch_s + first_s`` (local time, as python-can writes the
-    ``date`` line) and the relative time stamps are still counted from the first frame's
-    ``first_s``.
+    The trigger block and the header's ``date`` line are dated ``start_epoch_s + first_s``
+    (local time, as python-can writes the ``date`` line) and the time stamps are counted from
+    the first frame's ``first_s``.
     """
-    when = dt.datetime.fromtimestamp(start_epoch_s + first_s)
-    writer.file.write(f"Begin Triggerblock {writer._format_header_datetime(when)}\n")
+    when = writer._format_header_datetime(dt.datetime.fromtimestamp(start_epoch_s + first_s))
+    _redate_asc_header(writer, when)
+    writer.file.write(f"Begin Triggerblock {when}\n")
     writer.header_written = True
     writer.started = writer.last_timestamp = first_s
     writer.log_event("Start of measurement")

@@ -1,8 +1,8 @@
 """``scripts/setup.sh`` installs system packages only when asked: with ``--system-packages``,
 or as root with apt when ``CI`` is set; never silently otherwise.
 
-apt-get, dpkg-query, id, sudo and python are stand-ins on PATH that log their calls, so the
-test neither needs root nor touches the machine."""
+apt-get, dpkg-query, id, sudo, python, locale and localedef are stand-ins on PATH that log
+their calls, so the test neither needs root nor touches the machine."""
 
 from __future__ import annotations
 
@@ -34,6 +34,8 @@ def _setup(tmp_path: Path, *args: str, uid: int = 0, ci: str | None = None,
         "id": f'[ "$1" = "-u" ] && echo {uid} || /usr/bin/id "$@"',
         "python": "exit 0",
         "sudo": 'exec "$@"',
+        "locale": 'echo C; echo POSIX',       # no de_DE: asc2log's locale is made
+        "localedef": "exit 0",
     }
     for name, body in bodies.items():
         if name == "sudo" and not sudo:
@@ -47,7 +49,7 @@ def _setup(tmp_path: Path, *args: str, uid: int = 0, ci: str | None = None,
     done = subprocess.run(["bash", str(ROOT / "scripts" / "setup.sh"), *args], env=env,
                           capture_output=True, text=True, timeout=60)
     calls = [line for line in log.read_text().splitlines()
-             if line.startswith(("apt-get", "sudo"))]
+             if line.startswith(("apt-get", "sudo", "localedef"))]
     return done.returncode, done.stderr, calls
 
 
@@ -58,7 +60,7 @@ def _installs(calls: list[str]) -> list[str]:
 def test_nothing_is_installed_silently(tmp_path: Path) -> None:
     code, stderr, calls = _setup(tmp_path, uid=0, ci=None)
     assert code == 0 and calls == []
-    assert "not installed: chromium user-mode-linux iproute2" in stderr
+    assert "not installed: chromium user-mode-linux iproute2 can-utils locales" in stderr
     assert "--system-packages" in stderr
 
 
@@ -66,7 +68,9 @@ def test_ci_as_root_installs_what_is_missing(tmp_path: Path) -> None:
     code, _stderr, calls = _setup(tmp_path, uid=0, ci="true")
     assert code == 0
     assert _installs(calls) == ["apt-get install -y -q --no-install-recommends "
-                                "chromium user-mode-linux iproute2"]
+                                "chromium user-mode-linux iproute2 can-utils locales"]
+    # asc2log reads ASC dates through the de_DE locale (tests/hil/record/test_buslog_time.py)
+    assert calls[-1] == "localedef -i de_DE -f ISO-8859-1 de_DE"
 
 
 def test_ci_without_root_does_not_install(tmp_path: Path) -> None:
@@ -79,6 +83,7 @@ def test_the_flag_installs_as_root_or_through_sudo(uid: int, tmp_path: Path) -> 
     code, _stderr, calls = _setup(tmp_path, "--system-packages", uid=uid)
     assert code == 0 and len(_installs(calls)) == 1
     assert any(c.startswith("sudo ") for c in calls) == (uid != 0)
+    assert calls[-1].endswith("localedef -i de_DE -f ISO-8859-1 de_DE")
 
 
 def test_the_flag_without_root_or_sudo_fails_clearly(tmp_path: Path) -> None:
@@ -88,9 +93,9 @@ def test_the_flag_without_root_or_sudo_fails_clearly(tmp_path: Path) -> None:
 
 
 def test_nothing_missing_installs_nothing(tmp_path: Path) -> None:
-    everything = ("chromium", "user-mode-linux", "kmod", "iproute2")
+    everything = ("chromium", "user-mode-linux", "kmod", "iproute2", "can-utils", "locales")
     code, stderr, calls = _setup(tmp_path, "--system-packages", installed=everything)
-    assert code == 0 and calls == [] and "not installed" not in stderr
+    assert code == 0 and _installs(calls) == [] and "not installed" not in stderr
 
 
 def test_an_unknown_argument_is_refused(tmp_path: Path) -> None:
