@@ -145,3 +145,40 @@ def test_the_rig_bound_to_the_dut_database_sends_its_frames(tmp_path) -> None:
 def test_an_undecodable_dut_frame_is_a_frame_error(default: ContractCodec) -> None:
     with pytest.raises(FrameError, match="ControllerStatus"):
         default.decode(can.Message(arbitration_id=0x190, is_extended_id=False, data=b"\x01"))
+
+
+@settings(max_examples=120, deadline=None)
+@given(depth=st.floats(0, 150), manual=st.floats(0, 100), enable=st.booleans(),
+       is_manual=st.booleans(), counter=st.integers(0, 15), x=st.integers(0, 5000),
+       y=st.integers(0, 5000), speed=st.floats(0, 20), distance=st.floats(0, 4e6),
+       position=st.floats(0, 150))
+def test_the_depth_rig_s_default_binding_gives_its_frame_codec_s_frames(
+        depth: float, manual: float, enable: bool, is_manual: bool, counter: int, x: int,
+        y: int, speed: float, distance: float, position: float) -> None:
+    """The depth devices went from the typed ``FrameCodec`` (choice names) to the codec
+    (quantity values): same bytes."""
+    from plant_emulators.sowing_depth import frames as f
+    from plant_emulators.sowing_depth.config import load_rig_config as depth_config
+    from plant_emulators.sowing_depth.rig import SowingDepthRig
+
+    codec = SowingDepthRig.contract_codec(depth_config())
+    old = f.FrameCodec()
+    pairs = [
+        (codec.encode({"target_depth": depth, "manual_roller_position": manual,
+                       "depth_enable": int(enable), "depth_mode": 0 if is_manual else 1,
+                       "setpoint_counter": counter}),
+         old.encode(f.DepthSetpoint(depth, manual, "on" if enable else "off",
+                                    "manual" if is_manual else "automatic", counter))),
+        (codec.encode({"inclinometer_x": x, "inclinometer_y": y, "inclinometer_x_status": 0,
+                       "inclinometer_y_status": 2, "inclinometer_counter": counter}),
+         old.encode(f.InclinometerFrame(x, y, "ok", "above range", counter))),
+        (codec.encode({"ground_speed": speed, "ground_distance": distance,
+                       "ground_direction": 1}),
+         old.encode(f.GroundSpeed(speed, distance))),
+        (codec.encode({"roller_position": position, "roller_position_status": 0,
+                       "roller_position_counter": counter}),
+         old.encode(f.DrawWireFrame(position, "ok", counter))),
+    ]
+    for (got,), want in pairs:
+        assert (got.arbitration_id, got.is_extended_id, bytes(got.data)) == \
+            (want.arbitration_id, want.is_extended_id, bytes(want.data))
