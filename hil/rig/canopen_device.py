@@ -6,7 +6,8 @@ canopen's wall-clock threads so it works in lockstep:
 
 * heartbeats at the period in 0x1017 (canopen would start a ``send_periodic`` thread);
 * TPDOs on SYNC (transmission types 1-240, every n-th SYNC) and on their event timer (254/255);
-* received RPDOs written into the object dictionary (``set_data``, so write callbacks fire);
+* received RPDOs written into the object dictionary (``set_data``, so write callbacks fire); one
+  shorter than its mapping is dropped with EMCY 0x8210, a longer one is used with EMCY 0x8220;
 * the master's configuration by SDO (:mod:`hil.rig.canopen_config`): PDO communication and
   mapping parameters, SYNC and EMCY COB-IDs, heartbeat producer and consumer times are checked
   against the EDS and CiA 301 before they are stored (a refusal is an SDO abort with its code)
@@ -37,12 +38,21 @@ import canopen
 from canopen.pdo.base import PdoMap
 
 from hil.rig.canopen_config import CommunicationGuard, ConfigRefused
-from hil.rig.canopen_errors import ABORT_NO_DATA, ABORT_VALUE_RANGE, ErrorState, emcy_payload
+from hil.rig.canopen_errors import (
+    ABORT_NO_DATA,
+    ABORT_VALUE_RANGE,
+    ErrorRegister,
+    ErrorState,
+    emcy_payload,
+)
 from hil.rig.device import Device
 
 NMT_STATES = {"INITIALISING": 0x00, "STOPPED": 0x04, "OPERATIONAL": 0x05,
               "PRE-OPERATIONAL": 0x7F}
 SYNC_ID = 0x080
+#: EMCY error codes of CiA 301: PDO not processed due to length error / PDO length exceeded
+PDO_LENGTH_ERROR = 0x8210
+PDO_LENGTH_EXCEEDED = 0x8220
 
 #: objects whose writes change how the node communicates (re-read once an SDO write is stored)
 _COMMUNICATION_OBJECTS = (0x1005, 0x1014, 0x1016, 0x1017)
@@ -449,6 +459,8 @@ class CanopenDevice(Device):
         if can_id in self._rpdo_by_id:
             if self.operational:
                 rpdo = self._rpdo_by_id[can_id]
+                if not self._rpdo_length_ok(rpdo, data):
+                    return []
                 trans_type = rpdo.trans_type
                 if trans_type is not None and trans_type <= 240:
                     # synchronous RPDO: actuated at the next SYNC (CiA 301)
@@ -544,8 +556,26 @@ class CanopenDevice(Device):
         return can.Message(arbitration_id=tpdo.cob_id, data=bytes(tpdo.data),
                            is_extended_id=False)
 
+    def _rpdo_length_ok(self, rpdo: PdoMap, data: bytes) -> bool:
+        """Whether to process an RPDO of this length (CiA 301), raising or ending its errors.
+
+        Shorter than its mapping: not processed, EMCY 0x8210; longer: processed by its first
+        bytes, EMCY 0x8220; the right length ends either error.
+        """
+        need = (rpdo.length + 7) // 8
+        if len(data) < need:
+            self.raise_error(PDO_LENGTH_ERROR, ErrorRegister.COMMUNICATION)
+            return False
+        if len(data) > need:
+            self.raise_error(PDO_LENGTH_EXCEEDED, ErrorRegister.COMMUNICATION)
+        elif self.errors.active:
+            self.clear_error(PDO_LENGTH_ERROR)
+            self.clear_error(PDO_LENGTH_EXCEEDED)
+        return True
+
     def _store_rpdo(self, rpdo: PdoMap, data: bytes) -> None:
-        rpdo.data = bytearray(data.ljust(len(rpdo.data), b"\x00"))
+        size = len(rpdo.data)
+        rpdo.data = bytearray(data[:size].ljust(size, b"\x00"))
         plan = self._byte_plan(rpdo)
         self._in_rpdo = True
         try:

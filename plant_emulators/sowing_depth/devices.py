@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 import can
 import canopen
 
-from hil.rig.canopen_device import CanopenDevice
+from hil.rig.canopen_device import PDO_LENGTH_ERROR, PDO_LENGTH_EXCEEDED, CanopenDevice
 from hil.rig.device import PeriodicDevice
 from plant_emulators.sowing_depth.cia402 import OBJECTS, DriveObjectError
 
@@ -55,8 +55,13 @@ class ServoDriveDevice(CanopenDevice):
                 raise canopen.SdoAbortedError(exc.abort_code) from exc
 
     def error_register(self) -> int:
-        """0x1001 as the drive computes it from its present fault (0 once reset)."""
-        return self.drive.error_register
+        """0x1001: the drive's, from its present fault (0 once reset), and the node's own PDO
+        length errors (communication, bit 4)."""
+        active = self.errors.active
+        if not active:
+            return self.drive.error_register
+        own = active.get(PDO_LENGTH_ERROR, 0) | active.get(PDO_LENGTH_EXCEEDED, 0)
+        return self.drive.error_register | own
 
     def update_errors(self) -> None:
         """The drive's faults since the last call become the node's errors: a fault is raised

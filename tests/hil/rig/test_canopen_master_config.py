@@ -328,3 +328,34 @@ def test_every_drive_object_is_writable_and_mappable_as_its_eds_says() -> None:
     # and the controlword); 8 writable and 21 readable ones with PDOMapping=1
     assert check_access_and_mapping(loop, rpdo=2, tpdo=3) == {
         "rw": 45, "ro": 43, "rpdo": 8, "tpdo": 21}
+
+
+def test_an_rpdo_of_the_wrong_length_for_its_mapping_gives_an_emcy() -> None:
+    """The master remapped RPDO2 to the target velocity alone (4 bytes); a frame of the old
+    layout (6 bytes) is used by its first 4 bytes with EMCY 0x8220, a short one is dropped with
+    EMCY 0x8210, and a right one ends the error."""
+    loop, plant = drive_loop()
+    master = loop.master
+    master.rpdo.read()
+    rpdo = master.rpdo[2]
+    rpdo.clear()
+    rpdo.add_variable(0x60FF)
+    rpdo.trans_type = 255
+    rpdo.save()
+    master.nmt.state = "OPERATIONAL"
+    loop.start_sync(0.01)
+
+    def send(data: bytes) -> None:
+        loop.to_device(can.Message(arbitration_id=0x302, data=data, is_extended_id=False))
+        loop.run_until(loop.t + 0.02)
+
+    send((1500).to_bytes(4, "little", signed=True) + b"\x0f\x00")
+    assert plant.drive.read(0x60FF, 0) == 1500
+    assert [(e.code, e.register) for e in master.emcy.active] == [(0x8220, 0x11)]
+    send(b"\x10\x00")
+    assert plant.drive.read(0x60FF, 0) == 1500                  # not processed
+    assert [e.code for e in master.emcy.active] == [0x8220, 0x8210]
+    assert master.sdo[0x1001].raw == 0x11
+    send((-700).to_bytes(4, "little", signed=True))
+    assert plant.drive.read(0x60FF, 0) == -700
+    assert master.emcy.active == [] and master.sdo[0x1001].raw == 0

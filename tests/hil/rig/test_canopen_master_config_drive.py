@@ -65,7 +65,8 @@ def test_a_remapped_drive_runs_profile_position_and_profile_velocity() -> None:
             master.network.subscribe(
                 cob_id, lambda can_id, data, ts: seen.__setitem__(can_id,
                                                                   seen.get(can_id, 0) + 1))
-        master.nmt.wait_for_bootup(5)
+        # its boot-up may come before the master waits for it: wait for any heartbeat
+        master.nmt.wait_for_heartbeat(5)
         remap(master)
         assert device.refused == []
         master.setup_402_state_machine(read_pdos=True)      # reads the new layout back by SDO
