@@ -45,6 +45,11 @@ from hil.rig.device import Device
 
 #: how often applications without a ``next_due`` of their own are ticked
 APP_TICK_S = 0.01
+#: an application due within this of the run time is ticked now: a runner's tick grid
+#: (k * dt) and an application's schedule (first + k * period) differ by float rounding
+TIME_TOLERANCE_S = 1e-9
+#: the longest next_due an idle network gives
+IDLE_RECHECK_S = 60.0
 
 
 @dataclass(frozen=True)
@@ -186,6 +191,10 @@ class IsobusNetwork(Device):
                 due = min(due, self._app_next_due(cf, i, app))
         if self._contenders:
             due = min(due, self._contenders[0].at_s)
+        # finite even when idle: hil.rig.runner turns next_due into ticks with math.ceil, which
+        # fails on inf although Device.next_due allows it (reported; an idle network is polled
+        # once a minute meanwhile)
+        due = min(due, time_s + IDLE_RECHECK_S)
         return max(due, math.nextafter(time_s, math.inf))
 
     def emit(self, time_s: float) -> list[can.Message]:
@@ -251,7 +260,7 @@ class IsobusNetwork(Device):
         self._drain()
         for cf in self.functions:
             for i, app in enumerate(cf.applications):
-                if self._app_next_due(cf, i, app) <= now:
+                if self._app_next_due(cf, i, app) <= now + TIME_TOLERANCE_S:
                     app.tick(now)
                     if not callable(getattr(app, "next_due", None)):
                         self._app_due[id(app)] = now + APP_TICK_S

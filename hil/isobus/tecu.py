@@ -34,7 +34,7 @@ from cantools.database.can import Database
 
 from hil.errors import FrameError
 from hil.isobus.name import IsobusName
-from hil.isobus.network import InternalControlFunction, IsobusNetwork
+from hil.isobus.network import TIME_TOLERANCE_S, InternalControlFunction, IsobusNetwork
 
 DBC_PATH = Path(__file__).with_name("db") / "iso11783_7.dbc"
 PGN_WHEEL_BASED_SPEED = 0xFE48
@@ -146,6 +146,7 @@ class TractorEcu:
         self.truth = truth
         self.period_s = period_s
         self._next_s: float | None = None
+        self._first_s: float | None = None
         self._last_s: float | None = None
         self.wheel_distance_m = 0.0
         self.ground_distance_m = 0.0
@@ -165,17 +166,19 @@ class TractorEcu:
         """Send the three messages if they are due."""
         if self.port.address is None:
             return
-        if self._next_s is not None and now_s < self._next_s:
+        if self._next_s is not None and now_s + TIME_TOLERANCE_S < self._next_s:
             return
         state = self.truth(now_s)
         self._integrate(state, now_s)
         for pgn, data in self.encode(state):
             self.port.send(pgn, data, priority=PRIORITY)
         self.sent += 1
-        base = now_s if self._next_s is None else self._next_s
-        self._next_s = base + self.period_s
-        while self._next_s <= now_s:            # a late tick does not send a burst
-            self._next_s += self.period_s
+        if self._first_s is None:
+            self._first_s = now_s
+        # the k-th period from the first message, not a running sum: a runner's tick grid
+        # (k * dt) meets it without float drift; a late tick does not send a burst
+        k = math.floor((now_s - self._first_s) / self.period_s + 1e-6) + 1
+        self._next_s = self._first_s + k * self.period_s
 
     def encode(self, state: TractorState) -> list[tuple[int, bytes]]:
         """The (PGN, 8 data bytes) of the three messages for ``state``."""
