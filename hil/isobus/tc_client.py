@@ -257,6 +257,7 @@ class TaskControllerClient:
         self._started_s: float | None = None
         self._state_s = 0.0
         self._last_status_s = -math.inf
+        self._last_status_from: int | None = None
         self._next_task_s = math.inf
         self._now_s = 0.0
         self._next_poll_s = 0.0
@@ -332,6 +333,9 @@ class TaskControllerClient:
         if self.state is ClientState.STARTING:
             if now_s >= self._started_s + self.startup_delay_s:
                 self._set_state(ClientState.WAIT_STATUS, now_s)
+                heard = self._last_status_from
+                if heard is not None and now_s - self._last_status_s < CLIENT_TASK_PERIOD_S:
+                    self._begin(heard, now_s)    # a status heard while starting: the TC is up
             return
         if self._conn is not None and now_s - self._last_status_s >= TC_STATUS_TIMEOUT_S:
             self._lose(now_s, f"no TC status for {now_s - self._last_status_s:.1f} s")
@@ -465,8 +469,7 @@ class TaskControllerClient:
         return self._conn is not None and msg.source == self._conn.tc_address
 
     def _on_process_data(self, msg: Received) -> None:
-        if self.port.address is None or self.state in (ClientState.STARTING,
-                                                        ClientState.REFUSED):
+        if self.state is ClientState.REFUSED:
             return
         try:
             message = pd.decode(msg.data)
@@ -476,7 +479,8 @@ class TaskControllerClient:
         if isinstance(message, pd.TaskControllerStatus):
             self._on_status(message, msg)
             return
-        if not self._from_tc(msg) or msg.destination != self.port.address:
+        if self.port.address is None or not self._from_tc(msg) \
+                or msg.destination != self.port.address:
             return
         self._handle(message, msg.time_s)
 
@@ -486,8 +490,10 @@ class TaskControllerClient:
         if self._conn is None and self.tc_address_wanted not in (None, msg.source):
             return
         self._last_status_s = msg.time_s
+        self._last_status_from = msg.source
         self.task_active = bool(status.status & pd.ServerStatus.TASK_TOTALS_ACTIVE)
-        if self._conn is None and self.state is ClientState.WAIT_STATUS:
+        if self._conn is None and self.state is ClientState.WAIT_STATUS \
+                and self.port.address is not None:
             self._begin(msg.source, msg.time_s)
 
     def _handle(self, message: pd.ProcessDataMessage, t: float) -> None:

@@ -192,11 +192,9 @@ def test_distance_interval_triggers_send_a_value_every_interval_of_travel() -> N
     assert all(abs(g - 2.5) < 0.02 for g in gaps), gaps
 
 
-def test_change_and_threshold_triggers_send_when_the_value_changes_or_enters_the_window() -> None:
+def test_change_triggers_send_when_the_value_moves_by_the_threshold() -> None:
     pool = _pool()
-    bench = Bench(pool, triggers=TriggerPlan(time_interval_ms=None, change_threshold=1000,
-                                             minimum_threshold=20_000,
-                                             maximum_threshold=30_000))
+    bench = Bench(pool, triggers=TriggerPlan(time_interval_ms=None, change_threshold=1000))
     product = _element(pool, ElementType.BIN)
     key = (product, ddi.ACTUAL_MASS_PER_AREA_RATE)
     bench.app.values[key] = 10_000
@@ -205,21 +203,38 @@ def test_change_and_threshold_triggers_send_when_the_value_changes_or_enters_the
     def sent() -> list[int]:
         return [v.value for v in bench.server.values if (v.element, v.ddi) == key]
 
-    assert sent() == [10_000]              # first reading after the change trigger is set
-    bench.app.values[key] = 10_500         # below the change threshold, outside the window
-    bench.run(6.0)
-    assert sent() == [10_000]
-    bench.app.values[key] = 25_000         # a change, and into the window: one value
-    bench.run(7.0)
-    assert sent() == [10_000, 25_000]
-    bench.app.values[key] = 25_400         # inside, small change: nothing
-    bench.run(8.0)
-    assert sent() == [10_000, 25_000]
-    bench.app.values[key] = 35_000         # out of the window above, a change
-    bench.run(9.0)
-    assert sent() == [10_000, 25_000, 35_000]
+    assert sent() == [10_000]              # the first reading once the trigger is set
+    for value, expected in ((10_900, [10_000]), (11_000, [10_000, 11_000]),
+                            (10_100, [10_000, 11_000]), (9_900, [10_000, 11_000, 9_900])):
+        bench.app.values[key] = value
+        bench.run(bench.wire.now + 1.0)
+        assert sent() == expected, (value, sent())
     times = [v.time_s for v in bench.server.values if (v.element, v.ddi) == key]
-    assert times[1] == pytest.approx(6.0, abs=0.011)   # sent within one poll of the change
+    assert times[1] == pytest.approx(6.0, abs=0.011)   # within one 10 ms poll of the change
+
+
+def test_within_threshold_triggers_send_when_the_value_enters_the_window() -> None:
+    # minimum and maximum *within* threshold: report while above the minimum and below the
+    # maximum, once per entry (AgIsoStack++ reports leaving the window instead)
+    pool = _pool()
+    bench = Bench(pool, triggers=TriggerPlan(time_interval_ms=None, change_threshold=None,
+                                             minimum_threshold=20_000,
+                                             maximum_threshold=30_000))
+    product = _element(pool, ElementType.BIN)
+    key = (product, ddi.ACTUAL_MASS_PER_AREA_RATE)
+    bench.app.values[key] = 10_000
+    bench.run(5.0)
+    assert bench.client.triggers()[key] == {"minimum": 20_000, "maximum": 30_000}
+
+    def sent() -> list[int]:
+        return [v.value for v in bench.server.values if (v.element, v.ddi) == key]
+
+    assert sent() == []                    # below the window
+    for value, expected in ((25_000, [25_000]), (27_000, [25_000]), (35_000, [25_000]),
+                            (15_000, [25_000]), (21_000, [25_000, 21_000])):
+        bench.app.values[key] = value
+        bench.run(bench.wire.now + 1.0)
+        assert sent() == expected, (value, sent())
 
 
 def test_a_trigger_the_dpd_does_not_declare_is_refused() -> None:
