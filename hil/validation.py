@@ -82,6 +82,11 @@ class Range:
         return f"{what} {''.join(parts)}{unit}"
 
 
+def _a(text: str) -> str:
+    """``text`` with its indefinite article: "an integer …", "a number …"."""
+    return ("an " if text[:1] in "aeiou" else "a ") + text
+
+
 def _fmt(bound: float) -> str:
     if isinstance(bound, int) and bound >= 0x10000:
         if bound == 2**63 - 1:
@@ -140,7 +145,7 @@ PROFILE_RANGES: dict[str, Range] = {
 def check_value(value: float, rng: Range, *, what: str) -> None:
     """Raise :class:`ValueError` naming ``what`` when ``value`` is outside ``rng``."""
     if not rng.contains(value):
-        raise ValueError(f"{what} must be an {rng.describe()}, got {value!r}")
+        raise ValueError(f"{what} must be {_a(rng.describe())}, got {value!r}")
 
 
 def check_key(obj: object, table: str, *names: str) -> None:
@@ -169,10 +174,10 @@ def option_type(key: str) -> Callable[[str], int | float]:
             value = parse_number(text, rng)
         except ValueError:
             raise argparse.ArgumentTypeError(
-                f"{text!r} is not an {rng.describe()}") from None
+                f"{text!r} is not {_a(rng.describe())}") from None
         if not rng.contains(value):
-            raise argparse.ArgumentTypeError(f"{text} is out of range: give an "
-                                             f"{rng.describe()}")
+            raise argparse.ArgumentTypeError(f"{text} is out of range: give "
+                                             f"{_a(rng.describe())}")
         return value
     parse.__name__ = rng.kind   # what argparse calls the type in its messages
     return parse
@@ -189,7 +194,7 @@ def check_option(value: float | None, key: str) -> None:
         return
     rng = CLI_RANGES[key]
     if not rng.contains(value):
-        raise ConfigError(f"{value} is out of range: give an {rng.describe()}",
+        raise ConfigError(f"{value} is out of range: give {_a(rng.describe())}",
                           key=key.split()[-1])
 
 

@@ -40,6 +40,7 @@ from typing import Any, Literal
 from hil.config import check_positive, from_mapping, key_text
 from hil.errors import ConfigError
 from hil.limits import known_measurement, measurement_names
+from hil.validation import check_key
 
 Kind = Literal["firmware", "daemon", "inprocess", "physical"]
 PROFILE_NAME = re.compile(r"^[a-z0-9]+(-[a-z0-9]+)*$")
@@ -156,7 +157,8 @@ class Launch:
     stop_timeout_s: float = 3.0
 
     def __post_init__(self) -> None:
-        check_positive(self, "ready_timeout_s", "stop_timeout_s")
+        # ranges from hil.validation.PROFILE_RANGES (the reference page lists them)
+        check_key(self, "launch", "ready_timeout_s", "ready_delay_s", "stop_timeout_s")
         if not (self.ready in ("bootup", "delay") or self.ready.startswith("stdout:")):
             raise ValueError(f"ready must be 'bootup', 'delay' or 'stdout:<text>', "
                              f"got {self.ready!r}")
@@ -230,8 +232,8 @@ class Timing:
     max_frames_per_period: int = 50
 
     def __post_init__(self) -> None:
-        check_positive(self, "control_period_ms", "heartbeat_period_ms",
-                       "max_frames_per_period")
+        check_key(self, "timing", "control_period_ms", "heartbeat_period_ms",
+                  "max_frames_per_period")
 
 
 @dataclass(frozen=True)

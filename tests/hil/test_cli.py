@@ -66,7 +66,7 @@ def test_bus_fault_numbers_out_of_range_are_refused_naming_the_option(
     assert main(["bus", "fault", "--port", "1", "add", "drop", *argv]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"argument {argv[0]}" in err[0], err
-    assert "range" in err[0] or "is not an" in err[0], err
+    assert "range" in err[0] or "is not a" in err[0], err
 
 
 def test_every_numeric_option_has_its_range_in_the_help() -> None:
