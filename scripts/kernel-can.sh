@@ -38,6 +38,12 @@ if [[ "${1:-}" == "--guest-init" ]]; then
     mount -t sysfs sys /sys
     mount -t devtmpfs dev /dev 2>/dev/null || true
     mount -t tmpfs tmp /tmp
+    # a checkout under /tmp (cloned there, or reached through a symlink there) is hidden by
+    # that tmpfs: mount it again from the host, read-only as the rest of the root file system
+    if [[ "$ROOT" == /tmp/* ]]; then
+        mkdir -p "$ROOT"
+        mount -r -t hostfs none "$ROOT" -o "$ROOT"
+    fi
     mkdir -p /dev/pts /dev/shm
     mount -t devpts devpts /dev/pts 2>/dev/null || true
     mount -t tmpfs shm /dev/shm

@@ -86,3 +86,23 @@ def test_long_kernel_can_tests_pass_inside_the_guest(tmp_path: Path) -> None:
     assert int(suite.get("tests", 0)) == _collected("kernel_can and slow") >= 7
     assert int(suite.get("failures", 0)) == 0 and int(suite.get("errors", 0)) == 0
     assert int(suite.get("skipped", 0)) == 0, "a kernel_can test skipped inside the guest"
+
+
+def test_a_checkout_under_tmp_runs_in_the_guest(tmp_path: Path) -> None:
+    """The guest mounts a fresh tmpfs on /tmp: a checkout there (here: reached through a
+    symlink under /tmp, as the script sees its own path) is mounted again from the host."""
+    _guest_or_skip()
+    link = Path("/tmp") / f"agrihil-checkout-{os.getpid()}-{tmp_path.name}"
+    link.symlink_to(ROOT)
+    try:
+        cache = Path(os.environ.get("AGRIHIL_GUEST_CACHE",
+                                    Path.home() / ".cache" / "agrihil-guest"))
+        done = subprocess.run(
+            ["bash", str(link / "scripts" / "kernel-can.sh"), "--results",
+             str(tmp_path / "guest"), "--cache", str(cache), "--", "python", "-c",
+             "import os, hil; print('in', os.getcwd(), 'hil from', hil.__file__)"],
+            capture_output=True, text=True, timeout=600, cwd=tmp_path)
+    finally:
+        link.unlink()
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
+    assert f"in {link} hil from {link}/hil/__init__.py" in done.stdout, done.stdout[-3000:]
