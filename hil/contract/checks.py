@@ -133,7 +133,7 @@ def check_binding(contract: Contract, binding: Binding, *,
                                    f"{q.name} = {{ message = ..., signal = ... }}"))
             continue
         if isinstance(carrier, DdiCarrier):
-            out += _check_ddi(q, carrier, src)
+            out += _check_ddi(q, carrier, src, contract.rows)
             continue
         out += _check_signal(contract, q, carrier, db, src)
     out += _check_ids(contract, binding, db, src)
@@ -300,7 +300,7 @@ def _command_quantities(contract: Contract) -> set[str]:
     return set(contract.command_quantities)
 
 
-def _check_ddi(q: Quantity, carrier: DdiCarrier, src: str) -> list[Problem]:
+def _check_ddi(q: Quantity, carrier: DdiCarrier, src: str, rows: int) -> list[Problem]:
     key = f"quantities.{q.name}"
     try:
         from hil.isobus.ddi import lookup
@@ -310,8 +310,12 @@ def _check_ddi(q: Quantity, carrier: DdiCarrier, src: str) -> list[Problem]:
     except KeyError:
         return [Problem(src, f"{key}.ddi", f"DDI {carrier.ddi} is not in the rig's DDI table",
                         "a DDI of hil.isobus.ddi")]
-    if q.per_row and len(carrier.element) not in (1, ) and len(carrier.element) < 1:
-        return [Problem(src, f"{key}.element", "one element per row", "")]
+    if q.per_row and len(carrier.element) != rows:
+        return [Problem(src, f"{key}.element", f"{len(carrier.element)} device elements for "
+                        f"{rows} rows", "one element per row, row 1 first")]
+    if not q.per_row and len(carrier.element) != 1:
+        return [Problem(src, f"{key}.element", f"{q.name} is not per row: one element",
+                        "element = N")]
     try:
         f = factor(q.unit, entry.unit)
     except ConfigError as exc:

@@ -33,6 +33,12 @@ UNITS: dict[str, tuple[str, float]] = {
     "kg/hm2": ("mass per area", 1.0), "kg/ha": ("mass per area", 1.0),
     "t/ha": ("mass per area", 1000.0), "g/m2": ("mass per area", 10.0),
     "mg/m2": ("mass per area", 0.01), "kg/m2": ("mass per area", 10000.0),
+    # volume per area (base mm3/m2, ISO 11783-11) and volume flow (base mm3/s)
+    "mm3/m2": ("volume per area", 1.0), "l/ha": ("volume per area", 100.0),
+    "L/ha": ("volume per area", 100.0), "ml/m2": ("volume per area", 1000.0),
+    "mm3/s": ("volume flow", 1.0), "l/h": ("volume flow", 1e6 / 3600.0),
+    "L/h": ("volume flow", 1e6 / 3600.0), "l/min": ("volume flow", 1e6 / 60.0),
+    "L/min": ("volume flow", 1e6 / 60.0),
     # mass (base g)
     "g": ("mass", 1.0), "kg": ("mass", 1000.0), "mg": ("mass", 1e-3), "t": ("mass", 1e6),
     # length (base m)

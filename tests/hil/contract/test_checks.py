@@ -211,3 +211,23 @@ def test_copied_database_beside_the_binding(tmp_path: Path, fert: Contract) -> N
     shutil.copy(ACME_DBC, tmp_path / "x.dbc")
     (tmp_path / "b.toml").write_text(ACME_BINDING.read_text().replace(ACME_DBC.name, "x.dbc"))
     assert load_binding(tmp_path / "b.toml").database == (tmp_path / "x.dbc").resolve()
+
+
+@pytest.mark.parametrize(("carrier", "words"), [
+    ('{ ddi = 6, element = 1 }', []),                               # mg/m2 at 1: 0.01 kg/ha
+    ('{ ddi = 41, element = 1 }', ["mg/s", "cannot convert"]),       # a flow for a rate
+    ('{ ddi = 1, element = 1 }', ["mm³/m²", "cannot convert"]),      # a volume rate: unknown
+    ('{ ddi = 6, element = [1, 2] }', ["not per row: one element"]),
+    ('{ ddi = 60000, element = 1 }', ["not in the rig's DDI table"]),
+])
+def test_a_ddi_carrier_is_judged_by_the_ddi_table(fert: Contract, tmp_path: Path,
+                                                  carrier: str, words: list[str]) -> None:
+    path = _acme(tmp_path, binding=('target_rate = { message = "AcmeSetpoint", signal = '
+                                    '"RateKgHa" }', f"target_rate = {carrier}"))
+    errors = "\n".join(_errors(fert, path))
+    if not words:
+        assert "target_rate" not in errors, errors
+        with pytest.raises(Exception, match="Task Controller"):
+            ContractCodec(fert, load_binding(path)).encode({"target_rate": 100.0})
+    for word in words:
+        assert word in errors, (word, errors)
