@@ -13,8 +13,9 @@ import struct
 import canopen
 import numpy as np
 import pytest
+from canopen.objectdictionary import ODRecord, ODVariable, datatypes
 
-from hil.rig.canopen_config import SdoAbort
+from hil.rig.canopen_config import CommunicationGuard, ConfigRefused, SdoAbort
 from plant_emulators.fertilizer.analog_output import AnalogOutputChannel
 from plant_emulators.fertilizer.config import load_rig_config as load_fertilizer_config
 from plant_emulators.fertilizer.devices import AnalogOutputModule
@@ -175,3 +176,48 @@ def test_analog_module_takes_values_within_its_limits() -> None:
     assert (master.sdo[0x6411][1].raw, master.sdo[0x6443][2].raw,
             master.sdo[0x1029][1].raw) == (10000, 0, 2)
     assert loop.device.refused == []
+
+
+# ------------------------------------------------------------------ rules neither EDS reaches
+def _od_with_wo_object_and_two_consumers() -> canopen.ObjectDictionary:
+    """An object dictionary with what neither shipped EDS has: a write-only mappable object and
+    a consumer heartbeat of two entries (plus TPDO1 to map into)."""
+    od = canopen.ObjectDictionary()
+
+    def var(index: int, sub: int, name: str, data_type: int, access: str,
+            default: int, mappable: bool = False) -> ODVariable:
+        v = ODVariable(name, index, sub)
+        v.data_type, v.access_type, v.default, v.pdo_mappable = (data_type, access, default,
+                                                                  mappable)
+        return v
+
+    command = var(0x2000, 0, "Command", datatypes.UNSIGNED16, "wo", 0, mappable=True)
+    od.add_object(command)
+    consumer = ODRecord("Consumer heartbeat time", 0x1016)
+    consumer.add_member(var(0x1016, 0, "Highest sub-index", datatypes.UNSIGNED8, "ro", 2))
+    consumer.add_member(var(0x1016, 1, "Consumer 1", datatypes.UNSIGNED32, "rw", 0x0010012C))
+    consumer.add_member(var(0x1016, 2, "Consumer 2", datatypes.UNSIGNED32, "rw", 0))
+    od.add_object(consumer)
+    com = ODRecord("TPDO1 communication parameter", 0x1800)
+    com.add_member(var(0x1800, 1, "COB-ID", datatypes.UNSIGNED32, "rw", 0x80000185))
+    od.add_object(com)
+    mapping = ODRecord("TPDO1 mapping parameter", 0x1A00)
+    mapping.add_member(var(0x1A00, 0, "Count", datatypes.UNSIGNED8, "rw", 0))
+    mapping.add_member(var(0x1A00, 1, "Entry 1", datatypes.UNSIGNED32, "rw", 0))
+    od.add_object(mapping)
+    return od
+
+
+def test_guard_refuses_a_write_only_object_in_a_tpdo_and_a_node_watched_twice() -> None:
+    od = _od_with_wo_object_and_two_consumers()
+    values = {(o.index, o.subindex): o.default for o in
+              (od[0x1016][1], od[0x1016][2], od[0x1800][1], od[0x1A00][0])}
+    guard = CommunicationGuard(od, lambda index, sub: values[(index, sub)])
+    with pytest.raises(ConfigRefused) as info:
+        guard.check(0x1A00, 1, 0x20000010)
+    assert info.value.code == A.NOT_MAPPABLE and "a TPDO cannot read it" in info.value.reason
+    with pytest.raises(ConfigRefused) as info:
+        guard.check(0x1016, 2, 0x001000C8)                 # node 0x10 again, 200 ms
+    assert info.value.code == A.PARAMETER_INCOMPATIBLE
+    guard.check(0x1016, 2, 0x001100C8)                     # another node: accepted
+    guard.check(0x1016, 2, 0x00100000)                     # node 0x10 with time 0: off
