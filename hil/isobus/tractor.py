@@ -41,6 +41,7 @@ from hil.isobus.field.path import Field, Pose
 from hil.isobus.field.prescription import PrescriptionMap
 from hil.isobus.name import IsobusName
 from hil.isobus.network import IsobusNetwork
+from hil.isobus.tc.records import LoggedValue
 from hil.isobus.tc.server import ServerOptions, TaskControllerServer
 from hil.isobus.tc.setpoints import SetpointRequest
 from hil.isobus.tecu import SpeedSource, TractorEcu, TractorState, add_tecu
@@ -182,12 +183,11 @@ class Tractor:
         self.tecu: TractorEcu = add_tecu(self.network, self.truth)
         tc_cf = self.network.add(TC_NAME, TC_ADDRESS, "TC")
         self.tc = TaskControllerServer(tc_cf, options=options or _default_options(),
-                                       setpoints=self._setpoint)
+                                       setpoints=self._setpoint, on_value=self._on_value)
         tc_cf.run(self.tc)
         tc_cf.run(self)
         self._implements: dict[int, _Implement] = {}
         self._next_record_s = 0.0
-        self._values_seen = 0
 
     # -- the path ------------------------------------------------------------------------------
 
@@ -257,19 +257,20 @@ class Tractor:
         """When the as-applied record samples next."""
         return self._next_record_s
 
+    def _on_value(self, value: LoggedValue) -> None:
+        """The TC's hook: keep the implement's last reported actual rate and section states."""
+        implement = self._implement(value.address)
+        if implement is None:
+            return
+        actual = _ACTUAL_RATE_FOR_SETPOINT.get(
+            self.setup.prescription.unit.ddi if self.setup.prescription else -1)
+        if value.ddi == actual:
+            implement.actual_rate[value.element] = float(value.value)
+        elif value.ddi in _CONDENSED_ACTUAL:
+            implement.actual_states[value.ddi] = value.value & 0xFFFFFFFF
+
     def tick(self, now_s: float) -> None:
-        """Read the implement's new reports and sample the as-applied record when due."""
-        for value in self.tc.values[self._values_seen:]:
-            implement = self._implements.get(value.address)
-            if implement is None:
-                continue
-            actual = _ACTUAL_RATE_FOR_SETPOINT.get(
-                self.setup.prescription.unit.ddi if self.setup.prescription else -1)
-            if value.ddi == actual:
-                implement.actual_rate[value.element] = float(value.value)
-            elif value.ddi in _CONDENSED_ACTUAL:
-                implement.actual_states[value.ddi] = value.value & 0xFFFFFFFF
-        self._values_seen = len(self.tc.values)
+        """Sample the as-applied record when due."""
         if now_s < self._next_record_s:
             return
         self._next_record_s = now_s + self.setup.record_period_s
