@@ -137,7 +137,57 @@ def check_binding(contract: Contract, binding: Binding, *,
             continue
         out += _check_signal(contract, q, carrier, db, src)
     out += _check_ids(contract, binding, db, src)
+    out += _check_fixed_layouts(contract, binding, db, src)
     out += _fill_notes(contract, binding, db, src)
+    return out
+
+
+def _layout(sig: Any) -> tuple[Any, ...]:
+    return (sig.start, sig.length, sig.byte_order, sig.is_signed, sig.scale, sig.offset)
+
+
+def _layout_text(sig: Any) -> str:
+    order = "little-endian" if sig.byte_order == "little_endian" else "big-endian"
+    sign = "signed" if sig.is_signed else "unsigned"
+    return (f"bit {sig.start}, {sig.length} bits {order} {sign}, scale {sig.scale:g}, "
+            f"offset {sig.offset:g}")
+
+
+def _check_fixed_layouts(contract: Contract, binding: Binding, db: BusDatabase,
+                         src: str) -> list[Problem]:
+    """A quantity the wiring fixes goes to a CANopen device that decodes it as its EDS maps it.
+
+    The signal must sit where the rig's own database puts it.
+    """
+    default = contract.default_binding_file.resolve()
+    if not contract.fixed_ids or (binding.path is not None
+                                  and binding.path.resolve() == default):
+        return []
+    try:
+        from hil.contract.binding import load_binding
+
+        own = load_binding(contract.default_binding_file)
+        own_db = BusDatabase(own.database)
+    except (ConfigError, FrameError):
+        return []
+    out = []
+    for name in contract.fixed_ids:
+        mine, theirs = own.carriers.get(name), binding.carriers.get(name)
+        if not isinstance(mine, SignalCarrier) or not isinstance(theirs, SignalCarrier):
+            continue
+        if not db.has_message(theirs.message_for(None)):
+            continue
+        try:
+            want = own_db.message(mine.message_for(None)).get_signal_by_name(mine.signal)
+            got = db.message(theirs.message_for(None)).get_signal_by_name(theirs.signal)
+        except (KeyError, ConfigError):
+            continue
+        if _layout(want) != _layout(got):
+            out.append(Problem(src, f"quantities.{name}.signal",
+                               f"{theirs.message}.{theirs.signal} is at {_layout_text(got)}; "
+                               f"the rig's device decodes {name} at {_layout_text(want)} "
+                               f"({contract.fixed_id_reasons.get(name, 'the wiring')})",
+                               "the same layout in the database"))
     return out
 
 
