@@ -123,6 +123,18 @@ def test_the_client_connects_transferring_its_pool_over_tp_and_gets_set_points()
     assert len(tasks) >= 4 and all(abs(g - 2.0) < 0.02 for g in gaps), tasks
 
 
+def test_a_pool_beyond_1785_bytes_travels_by_etp() -> None:
+    pool = section_control_pool(sections=16, name=IMPLEMENT_NAME.value)
+    assert len(pool.to_bytes()) > 1785
+    bench = Bench(pool)
+    bench.run(6.0)
+    assert bench.client.connected and bench.client.transfers == 1
+    assert bench.server.sessions[0x81].pool == pool
+    etp = [f for f in bench.wire.frames if (f.frame.arbitration_id >> 8) & 0x3FF00 == 0xC800]
+    tp = [f for f in bench.wire.frames if (f.frame.arbitration_id >> 8) & 0x3FF00 == 0xEC00]
+    assert etp and not tp, "ETP connection management, no TP"
+
+
 def test_a_set_point_the_implement_refuses_is_acknowledged_with_its_errors() -> None:
     pool = _pool()
     bench = Bench(pool)
