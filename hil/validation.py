@@ -207,7 +207,7 @@ def ranges_table() -> str:
     lines = [".. list-table::", "   :header-rows: 1", "", "   * - option or profile key",
              "     - valid values", "     - why"]
     for name, rng in rows:
-        lines += [f"   * - {name}", f"     - {rng.describe()}", f"     - {rng.why}"]
+        lines += [f"   * - {name}", f"     - ``{rng.describe()}``", f"     - {rng.why}"]
     return "\n".join(lines)
 
 
