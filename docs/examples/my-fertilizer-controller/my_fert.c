@@ -34,6 +34,7 @@
 #define ID_HEARTBEAT (0x700 + NODE_ID)
 #define ID_WBSD 0x0CFE48F0u /* 29-bit */
 #define ID_GBSD 0x0CFE49F0u /* 29-bit */
+#define ID_STEP_END 0x1FFFFFF0u /* 29-bit, no data: "my answer to this SYNC is complete" */
 #define ROWS 4
 
 static volatile sig_atomic_t stop;
@@ -323,7 +324,10 @@ int main(int argc, char **argv)
         return 3;
     }
     const uint8_t bootup = 0x00, operational = 0x05;
-    if (bus_send(ID_HEARTBEAT, false, &bootup, 1) != 0) {
+    /* boot-up, then one step-end frame: it tells the rig that this controller ends each of
+     * its lockstep steps with one, so it may send its frames in any order */
+    if (bus_send(ID_HEARTBEAT, false, &bootup, 1) != 0 ||
+        bus_send(ID_STEP_END, true, NULL, 0) != 0) {
         return 3;
     }
     long steps = 0;
@@ -346,8 +350,9 @@ int main(int argc, char **argv)
             steps++;
             int mv = (int)lround(volts * 1000.0);
             uint8_t cmd[4] = {(uint8_t)(mv & 0xFF), (uint8_t)(mv >> 8), 0, 0};
-            if (bus_send(ID_HEARTBEAT, false, &operational, 1) != 0 ||
-                bus_send(ID_COMMAND, false, cmd, 4) != 0) {
+            if (bus_send(ID_COMMAND, false, cmd, 4) != 0 ||
+                bus_send(ID_HEARTBEAT, false, &operational, 1) != 0 ||
+                bus_send(ID_STEP_END, true, NULL, 0) != 0) {
                 return 3;
             }
             continue;
