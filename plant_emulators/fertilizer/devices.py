@@ -120,7 +120,10 @@ class TractorSpeedDevice(PeriodicDevice):
     """The tractor ECU's ISO 11783 speed messages: PGN 65096 (wheel) and 65097 (ground)."""
 
     def __init__(self, speed: GroundSpeedModel, codec: ContractCodec, period_s: float) -> None:
-        super().__init__("tractor ECU speed", codec.period_s("wheel_based_speed", period_s))
+        # one period for both messages: the cycle of the first one the binding carries
+        first = next((q for q in ("wheel_based_speed", "ground_based_speed") if codec.carries(q)),
+                     "wheel_based_speed")
+        super().__init__("tractor ECU speed", codec.period_s(first, period_s))
         self.speed = speed
         self.codec = codec
 
