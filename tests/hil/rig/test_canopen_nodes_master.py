@@ -4,11 +4,19 @@ The servo drive (CiA 402) faults, recovers after its fault reset, and a ``BaseNo
 ``emcy.active`` is empty again (#20.1); 0x1001 and 0x1003 read by SDO; the analog output
 module (CiA 401) reports a heartbeat consumer timeout by EMCY 0x8130 and its end by the
 error-reset EMCY; a stopped node answers no SDO.
+
+The device runs on the wall clock in a thread, so on a loaded machine anything may take a while:
+every wait here ends on the event it waits for (a frame the master heard, a condition met), and
+its time limit is only a watchdog against a device that never gets there (``WATCHDOG_S``).
+``canopen``'s ``wait_for_bootup`` is not used for the first boot-up: it waits for a boot-up
+*after* the call and misses one the device already sent (as it does when the test's thread is
+slow to get there), then times out on the heartbeats that follow.
 """
 
 from __future__ import annotations
 
 import math
+import threading
 from pathlib import Path
 
 import can
@@ -31,6 +39,19 @@ from plant_emulators.sowing_depth.rig import SowingDepthRig
 
 from .canopen_bench import master_and_device, wait_for
 
+#: the longest any wait here may take: a device that is not there, not a slow machine
+WATCHDOG_S = 120.0
+
+
+def _heard_the_device(master: canopen.RemoteNode) -> None:
+    """Until the master has heard the device: its boot-up (or, if that was before the master
+    listened, a heartbeat after it) takes the master's view off INITIALISING."""
+    wait_for(lambda: master.nmt.state != "INITIALISING", timeout_s=WATCHDOG_S)
+
+
+def _until(condition) -> None:  # type: ignore[no-untyped-def]
+    wait_for(condition, timeout_s=WATCHDOG_S)
+
 
 def _drive_device() -> tuple[ServoDriveDevice, SowingDepthPlant]:
     cfg = load_sowing_config()
@@ -50,7 +71,7 @@ def test_drive_fault_and_recovery_leave_no_active_emcy() -> None:
     device, plant = _drive_device()
     with master_and_device(device, str(EDS_PATH), canopen.BaseNode402,
                            _plant_advance(plant)) as (master, bench):
-        master.nmt.wait_for_bootup(5)
+        _heard_the_device(master)
         master.nmt.state = "PRE-OPERATIONAL"
         master.setup_402_state_machine(read_pdos=True)
         master.nmt.state = "OPERATIONAL"
@@ -60,7 +81,7 @@ def test_drive_fault_and_recovery_leave_no_active_emcy() -> None:
         assert master.sdo[0x1001].raw == 0 and master.sdo[0x1003][0].raw == 0
         with bench.lock:
             plant.drive.inject_fault(ErrorCode.CONTINUOUS_OVER_CURRENT)
-        wait_for(lambda: [e.code for e in master.emcy.active] == [0x2310])
+        _until(lambda: [e.code for e in master.emcy.active] == [0x2310])
         assert master.emcy.active[0].register == 0x03          # generic + current
         assert master.sdo[0x1001].raw == 0x03
         assert master.sdo[0x1003][0].raw == 1
@@ -68,7 +89,7 @@ def test_drive_fault_and_recovery_leave_no_active_emcy() -> None:
         with bench.lock:
             plant.drive.clear_injected_fault(ErrorCode.CONTINUOUS_OVER_CURRENT)
         master.state = "SWITCH ON DISABLED"                     # BaseNode402's fault reset
-        wait_for(lambda: master.emcy.log[-1].code == 0x0000)
+        _until(lambda: master.emcy.log[-1].code == 0x0000)
         assert master.emcy.active == []
         assert master.emcy.log[-1].register == 0
         assert master.sdo[0x1001].raw == 0
@@ -83,20 +104,25 @@ def test_stopped_drive_answers_no_sdo_but_its_heartbeat_says_stopped() -> None:
     device, plant = _drive_device()
     with master_and_device(device, str(EDS_PATH), canopen.RemoteNode,
                            _plant_advance(plant)) as (master, _):
-        master.nmt.wait_for_bootup(5)
-        master.sdo.RESPONSE_TIMEOUT = 0.3
-        master.sdo.MAX_RETRIES = 1
+        _heard_the_device(master)
+        master.sdo.RESPONSE_TIMEOUT = WATCHDOG_S / 4             # answered: however slowly
         assert master.sdo[0x1000].raw == 0x00020192
+        stopped = threading.Event()
+        master.nmt.add_heartbeat_callback(lambda state: state == 4 and stopped.set())
         master.nmt.state = "STOPPED"
-        master.nmt.wait_for_heartbeat(2)
-        wait_for(lambda: master.nmt.state == "STOPPED")
+        assert stopped.wait(WATCHDOG_S), "no heartbeat saying STOPPED"
+        master.sdo.RESPONSE_TIMEOUT = 0.3                       # not answered: fail fast
+        master.sdo.MAX_RETRIES = 1
         with pytest.raises(canopen.SdoCommunicationError):
             _ = master.sdo[0x1000].raw
+        master.sdo.RESPONSE_TIMEOUT = WATCHDOG_S / 4
         master.nmt.state = "PRE-OPERATIONAL"
         assert master.sdo[0x1000].raw == 0x00020192
+        booted = threading.Event()
+        master.nmt.add_heartbeat_callback(lambda state: state == 0 and booted.set())
         master.nmt.send_command(0x82)                           # reset communication
-        master.nmt.wait_for_bootup(2)
-        wait_for(lambda: master.nmt.state == "PRE-OPERATIONAL")
+        assert booted.wait(WATCHDOG_S), "no boot-up after the reset"
+        _until(lambda: master.nmt.state == "PRE-OPERATIONAL")
 
 
 def test_analog_output_module_reports_the_heartbeat_timeout_and_its_end() -> None:
@@ -109,18 +135,18 @@ def test_analog_output_module_reports_the_heartbeat_timeout_and_its_end() -> Non
     assert module.consumer_time_s > 0
     with master_and_device(module, wiring.analog_output_eds_file,
                            advance=module.update) as (master, _):
-        master.nmt.wait_for_bootup(5)
+        _heard_the_device(master)
         network = master.network
         beat = network.send_periodic(0x700 + module.watched_node, [0x05], 0.05)
-        wait_for(lambda: module.heartbeat_seen)
+        _until(lambda: module.heartbeat_seen)
         assert master.sdo[0x1001].raw == 0
         beat.stop()                                             # the controller goes silent
-        wait_for(lambda: [e.code for e in master.emcy.active] == [0x8130])
+        _until(lambda: [e.code for e in master.emcy.active] == [0x8130])
         assert master.emcy.active[0].register == 0x11          # generic + communication
         assert master.sdo[0x1001].raw == 0x11
         assert master.sdo[0x1003][1].raw == 0x8130
         beat = network.send_periodic(0x700 + module.watched_node, [0x05], 0.05)
-        wait_for(lambda: master.emcy.log[-1].code == 0x0000)
+        _until(lambda: master.emcy.log[-1].code == 0x0000)
         assert master.emcy.active == [] and master.sdo[0x1001].raw == 0
         beat.stop()
 
@@ -141,3 +167,19 @@ def test_fault_drive_overcurrent_run_ends_with_no_active_emcy(tmp_path: Path) ->
     assert codes[0][1] == 0x2310 and math.isclose(codes[0][0], 20, abs_tol=1)
     assert codes[-1][1] == 0x0000 and codes[-1][0] >= 25
     assert master.emcy.active == []
+
+
+def test_a_boot_up_before_the_master_waits_is_not_missed() -> None:
+    """A test thread that gets to its wait late (a loaded machine) still sees the device: with
+    ``master.nmt.wait_for_bootup`` this waited for a second boot-up that never comes."""
+    import time
+
+    device, plant = _drive_device()
+    with master_and_device(device, str(EDS_PATH), canopen.RemoteNode,
+                           _plant_advance(plant)) as (master, _):
+        _until(lambda: master.nmt._state_received not in (None, 0))   # a heartbeat after it
+        time.sleep(0.2)
+        _heard_the_device(master)
+        assert master.nmt.state == "PRE-OPERATIONAL"
+        with pytest.raises(canopen.nmt.NmtError):
+            master.nmt.wait_for_bootup(0.5)     # canopen's own wait misses the boot-up
