@@ -60,6 +60,8 @@ def register_bits_of(code: int) -> int:
 
     >>> hex(register_bits_of(0x2310)), hex(register_bits_of(0x8130)), hex(register_bits_of(0x5000))
     ('0x3', '0x11', '0x1')
+    >>> hex(register_bits_of(0x8210)), hex(register_bits_of(0x8611))
+    ('0x11', '0x21')
     """
     bits = ErrorRegister.GENERIC
     high = code & 0xF000
@@ -69,7 +71,7 @@ def register_bits_of(code: int) -> int:
         bits |= ErrorRegister.VOLTAGE
     elif high == 0x4000:
         bits |= ErrorRegister.TEMPERATURE
-    elif code & 0xFF00 == 0x8100:
+    elif code & 0xFF00 in (0x8100, 0x8200):    # communication, protocol (PDO length …)
         bits |= ErrorRegister.COMMUNICATION
     elif high == 0x8000:
         bits |= ErrorRegister.DEVICE_PROFILE
