@@ -166,7 +166,7 @@ def _finish(staging: Staging, profile: DutProfile, args: argparse.Namespace,
     ``error``, never an interruption.
     """
     record = staging.path / "record.json"
-    with signals_held():
+    with signals_held(), staging.writing():   # a failed write names --out, cleans the staging
         if not record.exists():
             if code is None:
                 doc = interrupted_record(profile, args, run_id=staging.run_id,
