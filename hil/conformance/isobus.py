@@ -405,8 +405,8 @@ def transport_violations(frames: Frames, *, resolution_s: float = 0.0,
       ETP RTS for 1,785 bytes or fewer (ISO 11783-3: ETP carries 1,786 and more);
     - ``data-without-cts``: a data packet with no session (but those within Tr plus
       ``resolution_s`` of an abort of their session: already in the DUT's transmit queue),
-      before a CTS (or DPO), or after the packets a CTS allowed were all sent —
-      ``packets-beyond-cts``;
+      before a CTS (``data-without-dpo``: after an ETP CTS, before its DPO), or after the
+      packets a CTS allowed were all sent (``packets-beyond-cts``);
     - ``sequence``: a data packet whose sequence number is not the next one;
     - ``bam-too-fast`` / ``bam-too-slow``: a BAM packet less than ``bam_min_s`` (minus
       ``resolution_s``) or more than 200 ms (plus it) after the BAM or the previous packet;
@@ -563,7 +563,8 @@ def transport_violations(frames: Frames, *, resolution_s: float = 0.0,
             s.bam_last_s = f.time_s
         if f.rx:
             if s.allowed <= 0 and s.protocol != "BAM":
-                kind = "packets-beyond-cts" if s.ctses else "data-without-cts"
+                kind = ("data-without-dpo" if s.pending else
+                        "packets-beyond-cts" if s.ctses else "data-without-cts")
                 flag(kind, f, f"{proto}.DT seq {seq} to 0x{dest:02X}")
             elif seq != s.next_seq:
                 flag("sequence", f, f"seq {seq}, {s.next_seq} expected")

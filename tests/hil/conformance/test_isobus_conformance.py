@@ -313,3 +313,41 @@ def test_a_cyclic_pgn_off_its_declared_period_fails() -> None:
     m = judge(log_of(wire))["isobus.pgn.rate"][0]
     assert m.outcome is Outcome.FAIL and m.value == pytest.approx(25.0)
     assert "ISO 11783-10" in m.note
+
+
+@pytest.mark.parametrize("size", [9, 1785, 1786, 5000])
+@pytest.mark.parametrize("dut_sends", [True, False])
+def test_our_stack_at_tp_and_etp_boundaries_has_no_violations(size: int,
+                                                             dut_sends: bool) -> None:
+    wire, r, d = bench()
+    wire.run_until(0.5)
+    (d if dut_sends else r).send(PGN, bytes(range(256)) * (size // 256) + bytes(size % 256),
+                                 destination=0x80 if dut_sends else 0x90)
+    wire.run_until(4.0)
+    m = judge(log_of(wire))["isobus.transport.violations"][0]
+    assert m.outcome is Outcome.PASS and m.note == "1 TP/ETP session(s) followed", m.note
+
+
+def _etp(t: float, source: int, dest: int, control: Control, rx: bool, **fields):
+    return cm(t, source, dest, CmFrame(control, PGN, **fields), rx, pgn=PGN_ETP_CM)
+
+
+def _etp_dt(t: float, seq: int):
+    return frame(t, 0xC700, 0x90, data_packet(seq, b"\x02" * 7), 0x80, True, priority=7)
+
+
+def test_an_etp_sender_whose_dpo_does_not_fit_the_cts_fails() -> None:
+    head = [_etp(1.0, 0x90, 0x80, Control.ETP_RTS, True, size=2000),
+            _etp(1.01, 0x80, 0x90, Control.ETP_CTS, False, packets=3, next_packet=1)]
+    good = [*head, _etp(1.02, 0x90, 0x80, Control.ETP_DPO, True, packets=3, offset=0),
+            _etp_dt(1.03, 1), _etp_dt(1.04, 2), _etp_dt(1.05, 3),
+            _etp(1.06, 0x90, 0x80, Control.ABORT, True, reason=250)]
+    assert violations(good)[0] == 0
+    bad = [*head, _etp(1.02, 0x90, 0x80, Control.ETP_DPO, True, packets=4, offset=5),
+           _etp_dt(1.03, 1), _etp_dt(1.04, 3),
+           _etp(1.06, 0x90, 0x80, Control.ABORT, True, reason=250)]
+    value, note = violations(bad)
+    assert value == 3
+    assert "dpo-exceeds-cts: 1" in note and "dpo-offset: 1" in note and "sequence: 1" in note
+    no_dpo = [*head, _etp_dt(1.03, 1), _etp(1.06, 0x90, 0x80, Control.ABORT, True, reason=250)]
+    assert "data-without-dpo: 1" in violations(no_dpo)[1]
