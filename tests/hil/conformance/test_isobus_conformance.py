@@ -351,3 +351,30 @@ def test_an_etp_sender_whose_dpo_does_not_fit_the_cts_fails() -> None:
     assert "dpo-exceeds-cts: 1" in note and "dpo-offset: 1" in note and "sequence: 1" in note
     no_dpo = [*head, _etp_dt(1.03, 1), _etp(1.06, 0x90, 0x80, Control.ABORT, True, reason=250)]
     assert "data-without-dpo: 1" in violations(no_dpo)[1]
+
+
+def test_our_tc_client_talking_to_our_tc_passes_with_its_client_task_every_2_s() -> None:
+    from hil.isobus import ddi
+    from hil.isobus.ddop.samples import section_control_pool
+    from hil.isobus.tc import TaskControllerServer, TriggerPlan, constant_setpoints
+    from hil.isobus.tc_client import ClientState, TaskControllerClient
+
+    implement = IsobusName(identity_number=7, manufacturer_code=200, function=130,
+                           device_class=5)
+    rig, dut = IsobusNetwork(name="rig"), IsobusNetwork(name="dut")
+    tc_port = rig.add(IsobusName(identity_number=2, manufacturer_code=100, function=130), 0xF7)
+    tc_port.run(TaskControllerServer(tc_port, triggers=TriggerPlan(), setpoints=(
+        constant_setpoints({ddi.SETPOINT_MASS_PER_AREA_RATE: 25_000}))))
+    port = dut.add(implement, 0x81)
+    client = TaskControllerClient(port, section_control_pool(sections=4, name=implement.value),
+                                  on_setpoint=lambda *a: None, read_value=lambda *a: 0,
+                                  distance_mm=lambda t: 0.0, on_connection=lambda *a: None)
+    port.run(client)
+    wire = VirtualWire([rig, dut])
+    wire.run_until(12.0)
+    assert client.state is ClientState.CONNECTED
+    found = judge(log_of(wire))
+    assert all(m.outcome is Outcome.PASS for ms in found.values() for m in ms), found
+    assert "session(s) followed" in found["isobus.transport.violations"][0].note
+    assert found["isobus.transport.violations"][0].note[0] != "0"     # the DDOP went by TP
+    assert [m.conditions["message"] for m in found["isobus.pgn.rate"]] == ["TC client task"]
