@@ -217,7 +217,7 @@ def _campaign(args: argparse.Namespace) -> int:
             if campaign.status == "running":
                 campaign.status = "interrupted"
             if staging.path.exists():
-                with signals_held():
+                with signals_held(), staging.writing():   # a full disk names --out
                     campaign.close()
                     campaign.write()
                     _write_report(staging.path)
