@@ -2,7 +2,7 @@
 
 A rig package (``plant_emulators.<rig>``) subclasses :class:`Rig` (the physics and the devices)
 and ships scenario files; :func:`run_scenario` is the one loop that runs any rig under either
-clock. Rigs are found by name through :data:`hil.rig.registry.RIGS` and the
+clock. Rigs are found by name through :func:`hil.rig.registry.load_rig` and the
 ``agrihil.rigs`` entry point group.
 """
 

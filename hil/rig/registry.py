@@ -1,30 +1,37 @@
-"""Rig table: name → class, extendable through the ``agrihil.rigs`` entry point group."""
+"""Rig table: name → class, from the ``agrihil.rigs`` entry point group.
+
+The core names no rig: the built-in ones (the fertilizer and the sowing-depth rig) register
+themselves in this project's ``pyproject.toml`` exactly as a third-party package adds a rig,
+with an entry point ``NAME = "package.module:RigClass"`` in the group ``agrihil.rigs``; the
+rig class brings its physics, devices, scenarios and bus contract (:mod:`hil.contract`).
+"""
 
 from __future__ import annotations
 
-import importlib
-from importlib.metadata import entry_points
+from functools import cache
+from importlib.metadata import EntryPoint, entry_points
 
 from hil.errors import ConfigError
 from hil.rig.base import Rig
 
-RIGS: dict[str, str] = {
-    "fertilizer": "plant_emulators.fertilizer.rig:FertilizerRig",
-    "sowing_depth": "plant_emulators.sowing_depth.rig:SowingDepthRig",
-}
 ENTRY_POINT_GROUP = "agrihil.rigs"
 
 
+@cache
+def _entry_points() -> dict[str, EntryPoint]:
+    """The group's entry points by name (scanning installed metadata costs ~10 ms: once)."""
+    return {ep.name.replace("-", "_"): ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
+
+
 def available_rigs() -> list[str]:
-    """The names of every rig known: the built-in ones and those of the entry point group.
+    """The names of every rig registered under the ``agrihil.rigs`` entry point group.
 
     Returns
     -------
     list of str
         Sorted rig names.
     """
-    names = set(RIGS) | {ep.name for ep in entry_points(group=ENTRY_POINT_GROUP)}
-    return sorted(names)
+    return sorted(_entry_points())
 
 
 def load_rig(name: str) -> type[Rig]:
@@ -33,7 +40,7 @@ def load_rig(name: str) -> type[Rig]:
     Parameters
     ----------
     name : str
-        A built-in rig or one registered under the ``agrihil.rigs`` entry point group.
+        A rig registered under the ``agrihil.rigs`` entry point group.
 
     Returns
     -------
@@ -43,15 +50,16 @@ def load_rig(name: str) -> type[Rig]:
     Raises
     ------
     ConfigError
-        No rig has that name (the message lists the available ones).
+        No rig has that name (the message lists the available ones; with none at all, it says
+        the package is not installed, since its own rigs register through its metadata).
     """
-    name = name.replace("-", "_")
-    target = RIGS.get(name)
-    if target is None:
-        eps = {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
-        if name not in eps:
-            raise ConfigError(f"unknown rig {name!r}; available: {', '.join(available_rigs())}",
+    key = name.replace("-", "_")
+    eps = _entry_points()
+    if key not in eps:
+        if not eps:
+            raise ConfigError(f"unknown rig {name!r}: no rig is registered (agrihil is not "
+                              "installed: run scripts/setup.sh, or pip install -e .)",
                               key="rig")
-        return eps[name].load()  # type: ignore[no-any-return]
-    module_name, _, attr = target.partition(":")
-    return getattr(importlib.import_module(module_name), attr)  # type: ignore[no-any-return]
+        raise ConfigError(f"unknown rig {name!r}; available: {', '.join(available_rigs())}",
+                          key="rig")
+    return eps[key].load()  # type: ignore[no-any-return]
