@@ -19,9 +19,10 @@ limit (the constants below, each derived where it is defined) and a detail dicti
 
 Which frames are the DUT's: those with ``rx`` set (the rig received them), as for the CANopen
 checks; the rig's own frames (its claims, requests, the contender it injects, its side of a
-transfer) have ``rx`` False. Only 29-bit frames are read; the loop over them is in Python (an
-ISOBUS run of a minute has a few thousand frames; the CANopen checks' vectorised path is for
-the 120,000-frame depth runs).
+transfer) have ``rx`` False. Only 29-bit frames are read, decoded once and walked in Python:
+measured 8.4 us per frame for all five measurements (a 600 s log of our TC client and TC with
+a 100 Hz message beside them, 61,393 frames, in 0.5 s), small beside the run; the CANopen
+checks' vectorised path is for the 120,000-frame depth runs.
 
 ``resolution_s`` is how finely the log places a DUT frame in time (the rig's physics step in
 real time, the control period in lockstep, as :mod:`hil.conformance.measure` uses): every time
