@@ -6,6 +6,10 @@ name                       what                                            contr
 fertilizer-piecewise-pid   [F] piecewise PID, ``mode`` physical (default)  100 ms
                            or paper-literal
 fertilizer-open-loop       [F] constant-speed baseline (feedforward only)  100 ms
+fertilizer-piecewise-pid-  [F] piecewise PID as an ISOBUS implement: rate  100 ms
+isobus                     and sections from a TC, speed from the TECU
+fertilizer-rc400           [F] piecewise PID speaking the RC-400's own      100 ms
+                           database (docs/examples/byo-fertilizer)
 sowing-depth-fuzzy-pid     [D] fuzzy self-tuning PID, CiA 402 master       10 ms
 =========================  ==============================================  ==============
 """
@@ -36,10 +40,29 @@ def _piecewise(params: dict[str, ParamValue], step_on_sync: bool) -> Controller:
     return FlowController(mode, params, step_on_sync=step_on_sync)
 
 
+def _piecewise_isobus(params: dict[str, ParamValue], step_on_sync: bool) -> Controller:
+    from reference_controllers.fertilizer.isobus_mode import IsobusFlowController
+
+    mode = str(params.pop("mode", "physical"))
+    if mode not in ("physical", "paper-literal"):
+        raise ParamError(f"parameter 'mode' must be physical or paper-literal, got {mode!r}")
+    return IsobusFlowController(mode, params, step_on_sync=step_on_sync)
+
+
 def _open_loop(params: dict[str, ParamValue], step_on_sync: bool) -> Controller:
     from reference_controllers.fertilizer.adapter import OpenLoopFlowController
 
     return OpenLoopFlowController(params=params, step_on_sync=step_on_sync)
+
+
+def _rc400(params: dict[str, ParamValue], step_on_sync: bool) -> Controller:
+    from reference_controllers.fertilizer.dbc_adapter import (
+        RC400_DATABASE,
+        RC400_SIGNALS,
+        DbcFlowController,
+    )
+
+    return DbcFlowController(RC400_DATABASE, RC400_SIGNALS, params, step_on_sync=step_on_sync)
 
 
 def _depth(params: dict[str, ParamValue], step_on_sync: bool) -> Controller:
@@ -51,7 +74,11 @@ def _depth(params: dict[str, ParamValue], step_on_sync: bool) -> Controller:
 CONTROLLERS: dict[str, ControllerKind] = {k.name: k for k in (
     ControllerKind("fertilizer-piecewise-pid", "[F] piecewise PID (mode physical or "
                    "paper-literal)", 0.1, _piecewise),
+    ControllerKind("fertilizer-piecewise-pid-isobus", "[F] piecewise PID as an ISOBUS "
+                   "implement (TC rate and sections, TECU speed)", 0.1, _piecewise_isobus),
     ControllerKind("fertilizer-open-loop", "[F] constant-speed baseline", 0.1, _open_loop),
+    ControllerKind("fertilizer-rc400", "[F] piecewise PID on a foreign database (the RC-400 "
+                   "of docs/examples/byo-fertilizer)", 0.1, _rc400),
     ControllerKind("sowing-depth-fuzzy-pid", "[D] fuzzy self-tuning PID", 0.01, _depth),
 )}
 
