@@ -167,14 +167,15 @@ def isobus_frames(frames: Frames) -> list[IsobusFrame]:
                    [bytes(r) for r in frames.data[ext].tolist()], strict=True)
         for t, can_id, dlc, rx, data in rows:
             fid = decode_id(int(can_id))
-            out.append(IsobusFrame(t, fid.pgn, fid.source, fid.destination, data[:dlc], bool(rx)))
+            out.append(IsobusFrame(t, fid.pgn, fid.source, fid.destination, data[:dlc],
+                                   bool(rx)))
     else:
         for t, msg, rx in frames:  # type: ignore[misc]
             if not msg.is_extended_id or msg.is_error_frame or msg.is_remote_frame:
                 continue
             fid = decode_id(msg.arbitration_id)
             out.append(IsobusFrame(float(t), fid.pgn, fid.source, fid.destination,
-                              bytes(msg.data), bool(rx)))
+                                   bytes(msg.data), bool(rx)))
     out.sort(key=lambda f: f.time_s)
     return out
 
