@@ -113,6 +113,7 @@ def ecu_player(daemon_profile: str, bus: str) -> Iterator[subprocess.Popen[str]]
                             cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             text=True)
     try:
+        _until_on_the_bus(proc, bus, profile.wiring.heartbeat_id)
         yield proc
     finally:
         proc.terminate()
@@ -121,6 +122,36 @@ def ecu_player(daemon_profile: str, bus: str) -> Iterator[subprocess.Popen[str]]
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+
+
+#: how long an ECU player may take to come up: a watchdog for one that never does, not a
+#: budget (in the one-CPU guest, under load, the daemon's imports alone took over 10 s)
+ECU_WATCHDOG_S = 300.0
+
+
+def _until_on_the_bus(proc: subprocess.Popen[str], bus: str, heartbeat_id: int) -> None:
+    """Return once the ECU's heartbeat is on ``bus``, as a powered ECU's is before a bench
+    starts: the rig's own wait for it (the profile's ``ready_timeout_s``) then measures the
+    bench, not how long the player's interpreter took to start."""
+    import time
+
+    from hil.bus import open_bus
+
+    listener = open_bus(bus)
+    try:
+        deadline = time.monotonic() + ECU_WATCHDOG_S
+        while time.monotonic() < deadline:
+            if proc.poll() is not None:
+                raise RuntimeError(f"the ECU player exited {proc.returncode} before its "
+                                   f"heartbeat: {proc.stderr.read() if proc.stderr else ''}")
+            msg = listener.recv(0.1)
+            if msg is not None and msg.arbitration_id == heartbeat_id \
+                    and not msg.is_extended_id:
+                return
+        raise RuntimeError(f"the ECU player sent no heartbeat 0x{heartbeat_id:X} on {bus} "
+                           f"within {ECU_WATCHDOG_S:g} s")
+    finally:
+        listener.shutdown()
 
 
 def physical_profile(rig: str, tmp_path: Path, ready_timeout_s: float | None = None) -> Path:
