@@ -8,8 +8,6 @@ fertilizer-piecewise-pid   [F] piecewise PID, ``mode`` physical (default)  100 m
 fertilizer-open-loop       [F] constant-speed baseline (feedforward only)  100 ms
 fertilizer-piecewise-pid-  [F] piecewise PID as an ISOBUS implement: rate  100 ms
 isobus                     and sections from a TC, speed from the TECU
-fertilizer-piecewise-pid-  [F] piecewise PID as an ISOBUS implement: rate  100 ms
-isobus                     and sections from a TC, speed from the TECU
 fertilizer-rc400           [F] piecewise PID speaking the RC-400's own      100 ms
                            database (docs/examples/byo-fertilizer)
 sowing-depth-fuzzy-pid     [D] fuzzy self-tuning PID, CiA 402 master       10 ms
@@ -51,15 +49,6 @@ def _piecewise_isobus(params: dict[str, ParamValue], step_on_sync: bool) -> Cont
     return IsobusFlowController(mode, params, step_on_sync=step_on_sync)
 
 
-def _piecewise_isobus(params: dict[str, ParamValue], step_on_sync: bool) -> Controller:
-    from reference_controllers.fertilizer.isobus_mode import IsobusFlowController
-
-    mode = str(params.pop("mode", "physical"))
-    if mode not in ("physical", "paper-literal"):
-        raise ParamError(f"parameter 'mode' must be physical or paper-literal, got {mode!r}")
-    return IsobusFlowController(mode, params, step_on_sync=step_on_sync)
-
-
 def _open_loop(params: dict[str, ParamValue], step_on_sync: bool) -> Controller:
     from reference_controllers.fertilizer.adapter import OpenLoopFlowController
 
@@ -85,8 +74,6 @@ def _depth(params: dict[str, ParamValue], step_on_sync: bool) -> Controller:
 CONTROLLERS: dict[str, ControllerKind] = {k.name: k for k in (
     ControllerKind("fertilizer-piecewise-pid", "[F] piecewise PID (mode physical or "
                    "paper-literal)", 0.1, _piecewise),
-    ControllerKind("fertilizer-piecewise-pid-isobus", "[F] piecewise PID as an ISOBUS "
-                   "implement (TC rate and sections, TECU speed)", 0.1, _piecewise_isobus),
     ControllerKind("fertilizer-piecewise-pid-isobus", "[F] piecewise PID as an ISOBUS "
                    "implement (TC rate and sections, TECU speed)", 0.1, _piecewise_isobus),
     ControllerKind("fertilizer-open-loop", "[F] constant-speed baseline", 0.1, _open_loop),
