@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# The test command: set up, lint, then run the fast test set (long campaigns are marked slow).
+# The test command: set up, lint, then run the fast test set (long campaigns are marked slow) on
+# both cores.
 # Pass -m "" to run everything, or any other pytest arguments.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -7,7 +8,12 @@ bash scripts/setup.sh
 if [[ "${AGRIHIL_NO_VENV:-0}" != "1" ]]; then source .venv/bin/activate; fi
 ruff check .
 set +e
-python -m pytest -q -m "not slow" "$@"
+# both cores: pytest-xdist workers (AGRIHIL_TEST_WORKERS, default 2; 0 runs in this process),
+# the longest tests handed out first (tests/conftest.py), the guest beside the host tests
+workers="${AGRIHIL_TEST_WORKERS:-2}"
+parallel=()
+if [[ "$workers" != "0" ]]; then parallel=(-n "$workers" --dist loadgroup); fi
+python -m pytest -q -m "not slow" "${parallel[@]}" "$@"
 status=$?
 set -e
 # pytest exits 5 when it collected no tests: that is a broken test run, say so
