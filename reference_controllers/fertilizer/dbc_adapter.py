@@ -36,6 +36,7 @@ __all__ = ["RC400_DATABASE", "RC400_SIGNALS", "DbcFlowController", "SignalMap", 
 ROOT = Path(__file__).resolve().parents[2]
 RC400_DATABASE = ROOT / "docs" / "examples" / "byo-fertilizer" / "ratemaster_rc400.dbc"
 SYNC_ID = 0x080                        # CANopen SYNC: one control step each in lockstep
+SDO_RX = 0x600                         # CiA 301 SDO request to node n: 0x600 + n
 BOOT_UP, OPERATIONAL = 0, 5            # CiA 301 heartbeat states
 MAX_VALID_SPEED_MPS = 64.255           # J1939 "not available" decodes above it
 #: the control law's units, and each database unit's factor to them (value_law = value · f)
@@ -84,6 +85,10 @@ class SignalMap:
     row_ready_state: str
     row_overrange_diag: str
     status_every: int = 5
+    #: the drive module's CANopen node: configured at boot to watch this controller's heartbeat
+    drive_node: int = 0x20
+    #: its consumer heartbeat time (0x1016 sub 1), ms
+    drive_consumer_ms: int = 300
     loop_names: tuple[str, ...] = field(default=("Idle", "Fine", "Medium", "Coarse"))
 
 
@@ -195,7 +200,16 @@ class DbcFlowController(Controller):
 
     # --- frames in ----------------------------------------------------------------------
     def on_start(self) -> list[can.Message]:
-        return [self._encode(*self._heartbeat, BOOT_UP)]
+        """Boot-up, then configure the drive module as CANopen masters do: its consumer
+        heartbeat (0x1016 sub 1) watches this node, so it stops the motor when we go silent."""
+        return [self._encode(*self._heartbeat, BOOT_UP), self._consumer_heartbeat_sdo()]
+
+    def _consumer_heartbeat_sdo(self) -> can.Message:
+        node = self.db.get_message_by_name(self._heartbeat[0]).frame_id - 0x700
+        value = (node << 16) | self.map.drive_consumer_ms
+        data = bytes([0x23, 0x16, 0x10, 0x01]) + value.to_bytes(4, "little")  # expedited, 4 B
+        return can.Message(arbitration_id=SDO_RX + self.map.drive_node, is_extended_id=False,
+                           data=data)
 
     def on_frame(self, msg: can.Message) -> list[can.Message]:
         if msg.is_error_frame or msg.is_remote_frame:
