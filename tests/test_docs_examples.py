@@ -73,6 +73,9 @@ machine).
 ``test_controller_guide_frames_are_the_databases`` holds the frame tables of the "Writing your
 own controller" guides to the rigs' databases, and ``test_example_controller_is_written_without_
 agrihil`` keeps the guide's C example to the C library and POSIX (no agrihil code).
+``test_byo_controller_page_quotes_the_check`` holds the ``hil profile check`` output quoted
+by "Bringing your own controller" to what the check says (that page's commands, a bind, two
+checks and a qualification of its step tests, add ~27 s).
 """
 
 from __future__ import annotations
@@ -831,3 +834,18 @@ def test_example_controller_is_written_without_agrihil() -> None:
     assert profile.build is not None
     assert list(profile.build.sources) == ["{profile_dir}/my_fert.c"]
     assert not any("firmware" in arg for arg in profile.build.command)
+
+
+def test_byo_controller_page_quotes_the_check() -> None:
+    """The page "Bringing your own controller" quotes what ``hil profile check`` says of the
+    unedited binding: the quote is that output, line for line (paths shortened to ``…``), so a
+    change of the check or of ``hil profile bind`` shows here."""
+    doc = "docs/guide/bringing-your-own-controller.md"
+    profile = "docs/examples/byo-fertilizer/ratemaster-rc400-first-try.toml"
+    (quoted,) = [b for b in blocks(doc) if b.lang == "text"
+                 and any("hil: error:" in t for _, t in b.lines)]
+    result = run([str(Path(sys.executable).with_name("hil")), "profile", "check", profile], REPO)
+    assert result.returncode == 2, result.stderr
+    said = [re.sub(r"\S*ratemaster[-_]rc400[.-]", "…", line)
+            for line in (result.stdout + result.stderr).splitlines() if line.startswith("hil: ")]
+    assert said == [t for _, t in quoted.lines]

@@ -175,7 +175,7 @@ def _measurements(record: Path) -> dict[tuple[str, str], float]:
 @pytest.mark.slow
 def test_the_rc400_qualifies_with_the_reference_measurements(tmp_path: Path) -> None:
     """``hil qualify`` of both profiles, fast and robustness suites, lockstep on the inline
-    bus, seed 0: every control measurement is the same number (~3 min).
+    bus, seed 0: every control measurement is the same number (~100 s).
 
     But one: ``flow.comparison.accuracy_gain`` runs its open-loop baseline (a profile on
     agrihil's own DBC) on the rig of the DUT, binding and node id included
