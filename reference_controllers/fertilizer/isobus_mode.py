@@ -408,9 +408,11 @@ class IsobusFlowController(FlowController):
         return None
 
     def metering(self) -> bool:
-        """The pool is active, the boom is not stopped, a row is on and a speed is known."""
-        return (self.client.connected and self.work_state in (None, 1)
-                and any(self.sections) and self.ground_speed() is not None)
+        """The pool is active, a rate is set, the boom is not stopped, a row is on and a speed
+        is known."""
+        return (self.client.connected and self.rate_kg_ha > 0.0
+                and self.work_state in (None, 1) and any(self.sections)
+                and self.ground_speed() is not None)
 
     @property
     def enabled(self) -> bool:

@@ -328,6 +328,29 @@ def test_the_tecu_going_silent_stops_the_meter() -> None:
     assert after and all(s.volts == 0.0 and s.speed is None for s in after)
 
 
+# --------------------------------------------------------------------- the TC
+def test_a_tc_restart_stops_the_meter_until_the_pool_is_active_again() -> None:
+    tractor = _tractor()
+    node = ControllerNode(IsobusFlowController("physical"))
+    wire = VirtualWire([tractor.network, node])
+    restart_at = DRIVE_AFTER_S + 10.0
+    wire.run_until(restart_at)
+    tractor.tc.restart(restart_at, down_s=8.0)
+    wire.run_until(restart_at + 12.0)
+    client = node.ctl.client
+    lost = next(e.time_s for e in client.events if e.kind == "lost")
+    back = [e.time_s for e in client.events if e.detail == "connected"][-1]
+    # the standard's 6 s without a TC status: until then the last set-points hold
+    assert restart_at + 4.0 <= lost <= restart_at + 6.0 + 0.1
+    assert client.connections == 2 and restart_at + 8.0 <= back < restart_at + 9.0
+    assert all(s.metering and s.volts > 0 for s in node.steps
+               if restart_at - 2.0 <= s.t < lost)
+    between = [s for s in node.steps if lost <= s.t < back]
+    assert len(between) > 20 and all(s.volts == 0.0 and s.target_gps == 0.0 for s in between)
+    after = [s for s in node.steps if s.t > back + 0.5]
+    assert after and all(s.metering and s.volts > 0 for s in after)
+
+
 # --------------------------------------------------------------------- a refused pool
 def test_a_broken_ddop_is_refused_and_nothing_is_metered() -> None:
     tractor, node, _ = _run(DRIVE_AFTER_S + 6.0, ddop="broken")
