@@ -271,6 +271,24 @@ def test_it_uses_ground_based_speed_under_wheel_slip() -> None:
         assert s.target_gps == pytest.approx(0.1 * s.rate_kg_ha * 0.75 * truth, rel=0.03)
 
 
+def test_it_never_reads_the_wall_clock(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Lockstep: its time is the SYNC count; any clock read would raise here."""
+    import time
+
+    def no_clock() -> float:
+        raise AssertionError("the wall clock was read")
+
+    tractor = _tractor()
+    node = ControllerNode(IsobusFlowController("physical"))
+    wire = VirtualWire([tractor.network, node])
+    with monkeypatch.context() as m:
+        for name in ("time", "monotonic", "perf_counter", "time_ns", "monotonic_ns"):
+            m.setattr(time, name, no_clock)
+        wire.run_until(DRIVE_AFTER_S + 6.0)
+    assert node.ctl.client.connected and node.steps[-1].metering
+    assert node.ctl.clock_s == pytest.approx((node.ctl.steps - 1) * 0.1)
+
+
 def test_the_wheel_speed_variant_over_meters_by_the_slip() -> None:
     """The check above fails for a controller that reads PGN 65096 (the must-fail variant)."""
     slip = 0.2
