@@ -22,6 +22,10 @@ def fertilizer_piecewise_pid(**params: ParamValue) -> Controller:
     return _make("fertilizer-piecewise-pid", params)
 
 
+def fertilizer_piecewise_pid_isobus(**params: ParamValue) -> Controller:
+    return _make("fertilizer-piecewise-pid-isobus", params)
+
+
 def fertilizer_open_loop(**params: ParamValue) -> Controller:
     return _make("fertilizer-open-loop", params)
 

@@ -50,7 +50,7 @@ from hil.conformance import checks
 from hil.conformance.declared import BusContract, DeclaredFrame, build_contract
 from hil.conformance.framelog import FrameLog, read_bus_log
 from hil.conformance.rigs import rig_bus
-from hil.dut.profile import DutProfile
+from hil.dut.profile import DutProfile, database_path
 from hil.errors import ConfigError
 from hil.limits import MEASUREMENTS
 from hil.measurements import Measurement
@@ -98,6 +98,9 @@ def contract_of(profile: DutProfile, *, root: Path | None = None) -> BusContract
         if not database.is_absolute() and not database.exists():
             base = root or Path(__file__).resolve().parents[2]
             database = base / database
+        if not database.exists() and profile.path is not None:
+            # as hil profile check reads it (hil.dut.profile.database_path): beside the profile
+            database = database_path(profile.wiring.database, Path(profile.path))
         if not database.exists():
             raise ConfigError(f"message database {profile.wiring.database} not found",
                               path=str(profile.path or ""), key="wiring.database")

@@ -106,7 +106,8 @@ def profile_run_options(profile: DutProfile, *, rig_from: DutProfile | None = No
         The DUT to run.
     rig_from : DutProfile, optional
         The profile whose ``[rig]`` overrides configure the rig (default: ``profile``; a
-        baseline DUT runs on the rig of the DUT it is compared with).
+        baseline DUT runs on the plant of the DUT it is compared with, but on its own
+        ``wiring``: the DUT's binding is the DUT's bus, not the baseline's).
 
     Returns
     -------
@@ -115,5 +116,12 @@ def profile_run_options(profile: DutProfile, *, rig_from: DutProfile | None = No
         the flood limit (``timing.max_frames_per_period`` of ``profile``).
     """
     rig = rig_from or profile
-    return {"rig_config": dict(rig.rig_config), "rig_config_source": str(rig.path or ""),
+    config = dict(rig.rig_config)
+    if rig is not profile:
+        # the plant is the compared DUT's, the bus between rig and DUT is the one that runs:
+        # a baseline speaks its own database, whatever binding the DUT brought
+        config.pop("wiring", None)
+        if "wiring" in profile.rig_config:
+            config["wiring"] = profile.rig_config["wiring"]
+    return {"rig_config": config, "rig_config_source": str(rig.path or ""),
             "max_dut_frames_per_period": profile.timing.max_frames_per_period}
