@@ -136,7 +136,7 @@ def _bind(args: argparse.Namespace) -> int:
     output = Path(args.output) if args.output else None
     try:
         text = write_binding(database, contract,
-                             relative_to=output.resolve().parent if output else None)
+                             relative_to=output.resolve().parent if output else Path.cwd())
     except FrameError as exc:
         raise ConfigError(str(exc), path=str(database)) from exc
     if output is None:

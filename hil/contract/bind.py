@@ -12,6 +12,7 @@ multiplexer order to confirm. ``hil profile check`` then says what is still wron
 
 from __future__ import annotations
 
+import os
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -185,13 +186,10 @@ def write_binding(database: Path, contract: Contract, *, relative_to: Path | Non
     """
     db = BusDatabase(database)
     where = Path(database).resolve()
-    if relative_to is not None:
-        try:
-            shown = str(where.relative_to(relative_to.resolve()))
-        except ValueError:
-            shown = str(where)
-    else:
-        shown = str(where)
+    # relative to the binding file (how load_binding reads it), so the pair moves together;
+    # ``..`` parts included: a binding beside a profile names the database wherever it sits
+    shown = (os.path.relpath(where, relative_to.resolve()) if relative_to is not None
+             else str(where))
     lines = [f"# Binding of the {contract.rig} rig's quantities to {where.name}, written by "
              "`hil profile bind`.",
              "# Check every line; resolve each TODO, then run `hil profile check` on the "
