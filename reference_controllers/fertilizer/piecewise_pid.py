@@ -31,6 +31,21 @@ def _clamp(x: float, lo: float, hi: float) -> float:
     return min(max(x, lo), hi)
 
 
+#: physical upper bounds of the positive parameters: a value above one is a unit mistake (g for
+#: kg, rpm for r/min, mV for V), not a meter, and would drive the command to a rail
+_PHYSICAL_HIGH = {"km": 1000.0, "ff_coeff": 100.0, "ff_exponent": 2.0,
+                  "shaft_rpm_per_v": 1000.0, "v_max": 10.0}
+_WHY_HIGH = {
+    "km": "a correction gain above 1000 V per g/s saturates on any flow error",
+    "ff_coeff": "g/s per row at 1 r/min: a fluted roller of [F]'s meter gives 4.6; 100 would be "
+                "6 kg per minute per row at one turn a minute",
+    "ff_exponent": "flow grows with shaft speed no faster than its square on a fluted roller "
+                   "(fitted 0.65)",
+    "shaft_rpm_per_v": "meter shaft r/min per volt of command: [F]'s drive gives 6",
+    "v_max": "the analog module's full scale is 10 V",
+}
+
+
 @dataclass(frozen=True)
 class PiecewisePidParams:
     """Gains, thresholds and scalings of the piecewise PID.
@@ -74,9 +89,11 @@ class PiecewisePidParams:
             raise ValueError(f"mode must be one of {', '.join(MODES)}, got {self.mode!r}")
         if not 0.0 < self.e1 < self.e2:
             raise ValueError(f"need 0 < e1 < e2, got e1={self.e1}, e2={self.e2}")
-        for name in ("km", "ff_coeff", "ff_exponent", "shaft_rpm_per_v", "v_max"):
-            if not getattr(self, name) > 0.0:
-                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        for name, high in _PHYSICAL_HIGH.items():
+            value = getattr(self, name)
+            if not 0.0 < value <= high:
+                raise ValueError(f"{name} must be > 0 and <= {high:g} ({_WHY_HIGH[name]}), "
+                                 f"got {value}")
         if self.c_max < 0.0:
             raise ValueError(f"c_max must be >= 0, got {self.c_max}")
         if not self.ff_linear_below_rpm >= 0.0:

@@ -185,3 +185,13 @@ def test_parameters_check_and_override() -> None:
     assert (phys.mode, phys.e1, phys.e2, phys.c_max) == ("physical", 0.02, 0.10, 0.5)
     assert all(math.isfinite(getattr(phys, k)) for k in ("kp1", "kp2", "kp3", "ki1", "ki2",
                                                          "kd"))
+
+
+@pytest.mark.parametrize(("name", "value"), [("ff_coeff", 1e308), ("ff_coeff", 4390.0),
+                                             ("v_max", 12.0), ("ff_exponent", 3.0),
+                                             ("shaft_rpm_per_v", 6000.0), ("km", 0.0)])
+def test_parameters_out_of_physical_range_are_refused_by_name(name: str, value: float) -> None:
+    """A value no meter has (a unit mistake: g for kg, mV for V) is refused, naming the key."""
+    with pytest.raises(ValueError, match=rf"^{name} must be > 0 and <= "):
+        override(PAPER, {name: value})
+    override(PAPER, {name: {"km": 0.1}.get(name, getattr(PAPER, name))})
