@@ -180,8 +180,18 @@ def _stamped(msg: can.Message, time_s: float, *, rx: bool, channel: str) -> can.
 _BATCH = 1024
 
 
+def _asc_date(when: dt.datetime) -> str:
+    """An ASC header date, ``Thu May 14 09:30:15.005 2026``: milliseconds in three digits.
+
+    python-can's writer leaves them unpadded (``15.5`` for 5 ms), which its own reader takes
+    for 500 ms and which changes the line's width with the time.
+    """
+    return (f"{when.strftime('%a %b %d %H:%M:%S')}.{when.microsecond // 1000:03d} "
+            f"{when.strftime('%Y')}")
+
+
 def _redate_asc_header(writer: ASCWriter, when: str) -> None:
-    """Date the file's ``date`` line as its trigger block, in place.
+    """Date the file's ``date`` line as its trigger block.
 
     In the ASC format the ``date`` line is when the measurement started, and with
     ``timestamps absolute`` every time stamp counts from it; the trigger block of a recording
@@ -189,16 +199,20 @@ def _redate_asc_header(writer: ASCWriter, when: str) -> None:
     wall clock when the file is opened, which is neither the run's start given to the log nor
     the first frame's time: can-utils' ``asc2log`` takes that line as time zero, so it placed a
     log whose run started earlier (a replayed or test start time) at the moment the file was
-    written. Only the header is in the file yet, and the new date has the old one's width
-    (the same fixed-width format), so it is overwritten where it stands.
+    written. Only python-can's header is in the file yet: it is read back and written again
+    with the new first line.
     """
-    line = f"date {when}\n"
     file = writer.file
     file.flush()
-    end = file.tell()
+    with open(file.name, encoding=file.encoding) as written:
+        header = written.read()
+    first, _, rest = header.partition("\n")
+    if not first.startswith("date "):
+        raise ValueError(f"{file.name}: python-can's ASC header does not start with a date "
+                         f"line: {first!r}")
     file.seek(0)
-    file.write(line)
-    file.seek(end)
+    file.truncate()
+    file.write(f"date {when}\n{rest}")
 
 
 def _begin_asc_trigger_block(writer: ASCWriter, first_s: float, start_epoch_s: float) -> None:
@@ -208,7 +222,7 @@ def _begin_asc_trigger_block(writer: ASCWriter, first_s: float, start_epoch_s: f
     (local time, as python-can writes the ``date`` line) and the time stamps are counted from
     the first frame's ``first_s``.
     """
-    when = writer._format_header_datetime(dt.datetime.fromtimestamp(start_epoch_s + first_s))
+    when = _asc_date(dt.datetime.fromtimestamp(start_epoch_s + first_s))
     _redate_asc_header(writer, when)
     writer.file.write(f"Begin Triggerblock {when}\n")
     writer.header_written = True

@@ -87,3 +87,24 @@ def test_asc2log_places_the_log_in_time(tmp_path: Path) -> None:
     # (can-utils asc2log.c): depending on what the stack held, the date is an hour early
     offset = stamps[0] - (START + 0.5)
     assert min(abs(offset), abs(offset + 3600.0)) < 1e-3, offset
+
+
+def test_the_date_line_is_whole_whatever_python_can_wrote(tmp_path: Path, monkeypatch) -> None:
+    """python-can writes its own date line with unpadded milliseconds (``14.5`` for 5 ms), so
+    its width varies: the new line replaces it whole, with three-digit milliseconds."""
+    import can.io.asc
+
+    class _Now(dt.datetime):
+        @classmethod
+        def now(cls, tz=None):  # type: ignore[no-untyped-def, override]
+            return dt.datetime(2026, 11, 27, 6, 7, 8, 5000)          # python-can: "08.5"
+
+    monkeypatch.setattr(can.io.asc, "datetime", _Now)
+    start = dt.datetime(2026, 5, 14, 9, 30, 14, 505000).timestamp()  # first frame: 15.005
+    _log(tmp_path, start)
+    lines = (tmp_path / "bus.asc").read_text().splitlines()
+    assert lines[:4] == ["date Thu May 14 09:30:15.005 2026", "base hex  timestamps absolute",
+                         "internal events logged",
+                         "Begin Triggerblock Thu May 14 09:30:15.005 2026"]
+    first = next(iter(can.ASCReader(tmp_path / "bus.asc", relative_timestamp=False)))
+    assert first.timestamp == pytest.approx(start + 0.5, abs=1e-3)
