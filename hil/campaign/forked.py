@@ -28,15 +28,40 @@ import sys
 from pathlib import Path
 
 #: imported once by the fork server: everything a sample's pytest session imports before its
-#: first scenario that costs time (modules a rig lacks are skipped by the fork server)
+#: first scenario that costs time (modules a rig lacks are skipped by the fork server); the
+#: rigs and their suites' helper modules are added by name from their entry points
+#: (:func:`preload_modules`): the core names no rig
 PRELOAD = (
     "numpy", "scipy.signal", "control", "cantools", "can", "canopen", "pytest",
     "_pytest.python", "_pytest.fixtures", "hil.pytest_plugin", "hil.rig", "hil.metrics",
-    "hil.record", "hil.dut.factory", "hil.conformance", "plant_emulators.fertilizer.rig",
-    "plant_emulators.sowing_depth.rig", "reference_controllers.inprocess",
-    "test_suites.fertilizer.traces", "test_suites.sowing_depth.traces",
-    "test_suites.sowing_depth.pairing", "test_suites.loaded_bus",
+    "hil.record", "hil.dut.factory", "hil.conformance", "reference_controllers.inprocess",
 )
+
+
+def preload_modules() -> list[str]:
+    """:data:`PRELOAD`, every registered rig's module and its suites' helper modules.
+
+    The rigs come from the ``agrihil.rigs`` entry points, the suites from ``agrihil.suites``:
+    each suite package's modules that are not test files (trace readers, pairing helpers),
+    and those of the package above it (shared helpers such as a loaded-bus fixture).
+    """
+    import importlib.util
+    import pkgutil
+    from importlib.metadata import entry_points
+
+    names = list(PRELOAD)
+    names += [ep.value.partition(":")[0] for ep in entry_points(group="agrihil.rigs")]
+    for ep in entry_points(group="agrihil.suites"):
+        package = ep.value.partition(":")[0]
+        parent = package.rpartition(".")[0]
+        for owner in filter(None, (package, parent)):
+            spec = importlib.util.find_spec(owner)
+            if spec is None or not spec.submodule_search_locations:
+                continue
+            names += [f"{owner}.{m.name}"
+                      for m in pkgutil.iter_modules(spec.submodule_search_locations)
+                      if not m.ispkg and not m.name.startswith(("test_", "conftest"))]
+    return list(dict.fromkeys(names))
 
 
 class ForkRefused(RuntimeError):
@@ -58,7 +83,7 @@ def _fork_context() -> multiprocessing.context.ForkServerContext:
         # strings as a fresh process per sample does
         os.environ["PYTHONHASHSEED"] = "0"
         context = multiprocessing.get_context("forkserver")
-        context.set_forkserver_preload(list(PRELOAD))
+        context.set_forkserver_preload(preload_modules())
         _context = context
     return _context
 

@@ -227,11 +227,11 @@ def _campaign(args: argparse.Namespace) -> int:
 
 
 def default_dispersion(rig: str) -> Path:
-    """The rig's shipped dispersion file."""
-    import plant_emulators
+    """The rig's shipped dispersion file (from the rig's own bus contract: the core names no
+    rig)."""
+    from hil.contract.registry import dispersion_file
 
-    return Path(plant_emulators.__file__).resolve().parent / rig.replace("-", "_") \
-        / "dispersion.toml"
+    return dispersion_file(rig)
 
 
 def _rerun(campaign: Any, client: Any, out: Path) -> None:
