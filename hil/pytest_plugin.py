@@ -58,6 +58,7 @@ from hil.record.atomic import write_json_atomic
 from hil.record.recorder import versions
 from hil.rig import Rig, RunOptions, RunResult, load_rig, run_scenario
 from hil.rig.scenario import Scenario
+from hil.validation import CLI_RANGES
 
 SUITES = ("fast", "full", "robustness", "busload")
 SCHEMA = "agrihil.qualification/1"
@@ -145,9 +146,10 @@ def pytest_configure(config: pytest.Config) -> None:
         except ConfigError as exc:
             raise pytest.UsageError(f"--hil-bus: {exc}") from exc
         seed = config.getoption("--hil-seed")
-        if seed is not None and not 0 <= seed <= 2**63 - 1:   # a setup error, not the DUT's
+        seeds = CLI_RANGES["--seed"]   # the one table of valid ranges (hil.validation)
+        if seed is not None and not seeds.contains(seed):   # a setup error, not the DUT's
             raise pytest.UsageError(f"--hil-seed: {seed} is not a seed: give an integer "
-                                    f"0 .. 2**63-1")
+                                    f"{seeds.low} .. {seeds.high}")
         session = QualificationSession(
             profile=profile, bus=config.getoption("--hil-bus"),
             clock=config.getoption("--hil-clock"),
