@@ -321,18 +321,19 @@ class _Loop:
         first such frame is logged and its error raised one control period later, so that a
         more specific verdict on the same frames (a flood) can come first.
         """
-        if self._straddle is not None:
-            raise self._straddle
+        pending = self._straddle
         late_frame_error, t = self.barrier.late_frame_error, self.clock.time_s
         while True:
             msg = self.bus.recv(0.0)
             if msg is None:
-                return
+                break
             if not is_step_end(msg):
-                self.intake(msg)
+                self.intake(msg)    # a flood is counted (and raised) here, before the straddle
             error = late_frame_error(msg, t)
             if self._straddle is None:
                 self._straddle = error
+        if pending is not None:
+            raise pending
 
     def run(self) -> None:
         rig, scenario, dt = self.rig, self.scenario, self.dt
@@ -346,7 +347,13 @@ class _Loop:
         if speed is not None:
             rig.set_input("ground_speed_mps", speed, 0.0)
         devices = rig.devices
-        device_due = [math.ceil(d.next_due(-1.0) / dt - 1e-9) for d in devices]
+        never = ticks_total + 1
+
+        def due_tick(due_s: float) -> int:
+            # a device with nothing to send says inf (Device.next_due): due after the run
+            return math.ceil(due_s / dt - 1e-9) if math.isfinite(due_s) else never
+
+        device_due = [due_tick(d.next_due(-1.0)) for d in devices]
         next_device = min(device_due, default=ticks_total + 1)
         traced = rig.trace_signals()
         for name, (_, unit) in traced.items():
@@ -382,7 +389,7 @@ class _Loop:
                         if device_due[i] <= k:
                             for msg in device.emit(t):
                                 send(msg)
-                            device_due[i] = math.ceil(device.next_due(t) / dt - 1e-9)
+                            device_due[i] = due_tick(device.next_due(t))
                     next_device = min(device_due)
                 if k % trace_ticks == 0:
                     if speed is not None:

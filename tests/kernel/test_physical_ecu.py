@@ -118,6 +118,9 @@ def qualify_physical(rig: str, bus: str, tmp_path: Path, *,
     return record
 
 
+@pytest.mark.slow   # the default run makes this qualification as docs/guide/physical-ecu.md's
+#                   example (tests/test_docs_examples.py, the same command over hil bus serve,
+#                   exit 0 or an invalid bench): 26 s of the 6-minute budget, not twice
 def test_qualify_a_physical_fertilizer_ecu_over_hil_bus_serve(tmp_path: Path) -> None:
     with bus_server() as spec:
         record = qualify_physical("fertilizer", spec, tmp_path)
