@@ -195,6 +195,21 @@ class Tractor:
         """Where the antenna is at run time ``time_s``."""
         return self.setup.field.path.pose(max(0.0, time_s - self.setup.drive_after_s))
 
+    def leg_spans(self, kind: str) -> list[tuple[float, float]]:
+        """Run-time spans during which the tractor drives legs of ``kind`` (``pass``,
+        ``overlap``, ``turn``, ``transit``), consecutive legs of a kind merged."""
+        path = self.setup.field.path
+        spans: list[tuple[float, float]] = []
+        for i, leg in enumerate(path.legs):
+            if leg.kind != kind:
+                continue
+            a, b = (t + self.setup.drive_after_s for t in path.leg_time_span(i))
+            if spans and spans[-1][1] == a:
+                spans[-1] = (spans[-1][0], b)
+            else:
+                spans.append((a, b))
+        return spans
+
     def truth(self, time_s: float) -> TractorState:
         """What the TECU reports at ``time_s``."""
         pose = self.pose(time_s)

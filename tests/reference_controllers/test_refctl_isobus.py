@@ -102,21 +102,6 @@ def _run(end_s: float, *, slip: float = 0.0, **params: str | float,
     return tractor, node, wire
 
 
-def _spans(tractor: Tractor, kind: str) -> list[tuple[float, float]]:
-    """Run-time spans of the ``kind`` legs, consecutive legs of a kind merged."""
-    path = tractor.setup.field.path
-    spans: list[tuple[float, float]] = []
-    for i, leg in enumerate(path.legs):
-        if leg.kind != kind:
-            continue
-        a, b = (t + DRIVE_AFTER_S for t in path.leg_time_span(i))
-        if spans and spans[-1][1] == a:
-            spans[-1] = (spans[-1][0], b)
-        else:
-            spans.append((a, b))
-    return spans
-
-
 def _plateaus(values: list[tuple[float, float]], min_s: float) -> list[float]:
     """The values held for at least ``min_s``, in order (repeats merged)."""
     out: list[float] = []
@@ -186,7 +171,7 @@ def test_its_target_rate_follows_the_zones_and_its_flow_follows_eq_1(drive) -> N
     # along each pass the rate holds each zone's value while the boom is inside it, in the
     # order the zones lie on the ground (160 south, the 240 band, 200 north); where the boom
     # straddles a boundary the TC sends the mean under the sections, briefly
-    for start, end in _spans(tractor, "pass") + _spans(tractor, "overlap"):
+    for start, end in tractor.leg_spans("pass") + tractor.leg_spans("overlap"):
         plateaus = _plateaus([(s.t, s.rate_kg_ha) for s in node.steps if start <= s.t < end],
                              min_s=3.0)
         assert plateaus in ([160.0, 240.0, 200.0], [200.0, 240.0, 160.0]), (start, plateaus)
@@ -213,16 +198,16 @@ def test_sections_switch_rows_off_over_the_overlap_and_in_the_turns(drive) -> No
         assert states
         return metering.mean(axis=0)
 
-    overlap = on_share(_spans(tractor, "overlap"))
+    overlap = on_share(tractor.leg_spans("overlap"))
     assert sorted(overlap)[:2] == pytest.approx([0.0, 0.0], abs=0.05), overlap
     assert min(sorted(overlap)[2:]) > 0.7, overlap
-    passes = on_share(_spans(tractor, "pass"))
+    passes = on_share(tractor.leg_spans("pass"))
     assert passes.min() > 0.7, passes
-    turns = on_share(_spans(tractor, "turn"))
+    turns = on_share(tractor.leg_spans("turn"))
     assert turns.max() < 0.15, turns
     # over the overlap the per-row target does not change with two rows switched off: each
     # active row still covers its 0.75 m
-    (a, b), = _spans(tractor, "overlap")
+    (a, b), = tractor.leg_spans("overlap")
     two = [s for s in node.steps if a <= s.t < b and s.metering and sum(s.sections) == 2]
     assert len(two) > 50
     for s in two:

@@ -84,21 +84,6 @@ def drive() -> tuple[Tractor, Planter, TaskControllerClient, VirtualWire]:
     return tractor, planter, client, wire
 
 
-def _leg_spans(tractor: Tractor, kind: str) -> list[tuple[float, float]]:
-    """Run-time spans of the stretches of ``kind`` legs (consecutive legs of a kind merged)."""
-    path = tractor.setup.field.path
-    spans: list[tuple[float, float]] = []
-    for i, leg in enumerate(path.legs):
-        if leg.kind != kind:
-            continue
-        a, b = (t + DRIVE_AFTER_S for t in path.leg_time_span(i))
-        if spans and spans[-1][1] == a:
-            spans[-1] = (spans[-1][0], b)
-        else:
-            spans.append((a, b))
-    return spans
-
-
 def _held(events: list[tuple[float, list[int]]], t: float) -> list[int] | None:
     """The last of ``events`` at or before ``t``."""
     held = None
@@ -138,7 +123,7 @@ def test_set_points_follow_the_zones_under_the_boom(drive) -> None:
     assert len(pure) >= 8
     # along each pass, the rate goes through the zones in the order they lie on the ground:
     # 160 kg/ha in the south, the 240 band, 200 in the north
-    spans = _leg_spans(tractor, "pass") + _leg_spans(tractor, "overlap")
+    spans = tractor.leg_spans("pass") + tractor.leg_spans("overlap")
     assert len(spans) == 4
     for start, end in spans:
         held = [v for t, v in pure if t <= start][-1]
@@ -160,11 +145,11 @@ def test_sections_switch_off_in_the_headland_turns_and_over_the_overlap(drive) -
         arr = np.array([s if s is not None else [0] * SECTIONS for s in samples])
         return (arr == 1).mean(axis=0)
 
-    turns = on_share(_leg_spans(tractor, "turn"))
+    turns = on_share(tractor.leg_spans("turn"))
     assert turns.max() < 0.15, turns          # off in the headlands (look-ahead at the ends)
-    passes = on_share(_leg_spans(tractor, "pass"))
+    passes = on_share(tractor.leg_spans("pass"))
     assert passes.min() > 0.7, passes          # on over the work area
-    overlap = on_share(_leg_spans(tractor, "overlap"))
+    overlap = on_share(tractor.leg_spans("overlap"))
     # two of the four rows run over the third pass's ground: off; the other two apply
     assert sorted(overlap)[:2] == pytest.approx([0.0, 0.0], abs=0.05), overlap
     assert sorted(overlap)[2:] > [0.7, 0.7], overlap
