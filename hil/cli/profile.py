@@ -90,6 +90,29 @@ def profile_problems(profile: DutProfile) -> list[Problem]:
     return out
 
 
+def refuse_problems(profile: DutProfile) -> None:
+    """Refuse, before a run, a profile that ``hil profile check`` would report errors for.
+
+    ``hil run`` and ``hil qualify`` call it up front, so a binding, wiring or build problem
+    (a ``command_ids`` typo included) is the same setup error in every command, never a run
+    that starts and then fails.
+
+    Raises
+    ------
+    ConfigError
+        Naming the first problem's file and key, with how many more there are.
+    """
+    errors = [p for p in profile_problems(profile) if not p.note]
+    if not errors:
+        return
+    first = errors[0]
+    more = (f"; and {len(errors) - 1} more problem(s): `hil profile check {profile.path}` "
+            "lists them all") if len(errors) > 1 else ""
+    fix = f" (fix: {first.fix})" if first.fix else ""
+    raise ConfigError(f"{first.message}{fix}{more}", path=first.path or None,
+                      key=first.key or None)
+
+
 def _check(args: argparse.Namespace) -> int:
     failed = 0
     for path in args.files:

@@ -189,6 +189,9 @@ def _prepare(args: argparse.Namespace) -> tuple[DutProfile, Staging]:
     # every option is checked before anything runs: a bad one is exit 2, never the DUT's fault
     # a bad profile (or build id) never starts a run
     profile = with_build_id(load_profile(args.profile), args.build_id)
+    from hil.cli.profile import refuse_problems
+
+    refuse_problems(profile)                       # what `hil profile check` would report
     if args.rig_override:                          # campaign (issue 15): checked up front
         from hil.campaign.overrides import parse_overrides
 

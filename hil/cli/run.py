@@ -82,6 +82,10 @@ def _run(args: argparse.Namespace) -> int:
         raise ConfigError("the inline bus calls the controller inside the lockstep loop: use "
                           "--clock lockstep, or a bus (softbus) for real time", key="--bus")
     profile = load_profile(args.dut) if _is_profile(args.dut) else None
+    if profile is not None:
+        from hil.cli.profile import refuse_problems
+
+        refuse_problems(profile)                   # what `hil profile check` would report
     if args.build_id is not None:
         if profile is None:
             raise ConfigError("--build-id needs a DUT profile as --dut (a builtin has none)",
