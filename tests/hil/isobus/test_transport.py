@@ -172,8 +172,6 @@ def test_several_sessions_at_once_both_ways_and_queued_per_pair() -> None:
 
 
 def _frame(pgn: int, source: int, destination: int, data: bytes, priority: int = 7):
-    import can
+    from hil.isobus.can_id import make_frame
 
-    from hil.isobus.can_id import encode_id
-    return can.Message(arbitration_id=encode_id(priority, pgn, source, destination),
-                       data=data, is_extended_id=True)
+    return make_frame(priority, pgn, source, destination, data)

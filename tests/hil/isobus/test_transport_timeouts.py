@@ -5,7 +5,7 @@ from __future__ import annotations
 import can
 import pytest
 
-from hil.isobus.can_id import decode_id, encode_id
+from hil.isobus.can_id import decode_id, make_frame
 from hil.isobus.name import IsobusName
 from hil.isobus.network import IsobusNetwork
 from hil.isobus.tp_messages import (
@@ -26,8 +26,7 @@ PEER = 0x90
 
 
 def frame(pgn: int, data: bytes, source: int = PEER, destination: int = 0x80) -> can.Message:
-    return can.Message(arbitration_id=encode_id(7, pgn, source, destination), data=data,
-                       is_extended_id=True)
+    return make_frame(7, pgn, source, destination, data)
 
 
 def cm(control: Control, **kw: int) -> bytes:
