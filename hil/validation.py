@@ -123,6 +123,13 @@ CLI_RANGES: dict[str, Range] = {
     "bus fault --delay": Range("float", 0, 3600, unit="s", why="with kind delay"),
     "bus fault --rule": Range("int", 0, 2**31 - 1, why="a rule number of fault list"),
     "bus fault -n": Range("int", 1, 10_000, why="error frames to send"),
+    "isobus serve --duration": Range("float", 0, 31_536_000, low_open=True, unit="s",
+                                     why="run time (a year at most); default: until Ctrl-C"),
+    "isobus serve --drive-after": Range("float", 0, 3600, unit="s",
+                                        why="standing still, key on, before the path"),
+    "isobus serve --wheel-slip": Range("float", 0, 1, high_open=True,
+                                       why="a slip fraction: the wheels cannot turn with no "
+                                           "ground travel"),
 }
 
 #: every numeric key of a DUT profile, by ``table.key``

@@ -7,7 +7,7 @@ import math
 import sys
 from pathlib import Path
 
-from hil.errors import ConfigError
+from hil.validation import help_with_range, option_type
 
 __all__ = ["add_subparser"]
 
@@ -33,29 +33,26 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
                            "plant_emulators/fertilizer/fields/rates-3zones.geojson)")
     rate.add_argument("--no-map", action="store_true",
                       help="send no rate set-point (TC-BAS and section control only)")
-    serve.add_argument("--duration", type=float, default=math.inf, metavar="S",
-                       help="stop after S seconds of run time (default: until Ctrl-C)")
-    serve.add_argument("--drive-after", type=float, default=10.0, metavar="S",
-                       help="stand still, key on, for S seconds before driving the path, so "
-                            "an implement can connect (default 10)")
-    serve.add_argument("--wheel-slip", type=float, default=0.0, metavar="F",
-                       help="slip of the tractor's driven wheels, 0 <= F < 1: the "
-                            "wheel-based speed over-reads by it (default 0)")
+    serve.add_argument("--duration", type=option_type("isobus serve --duration"),
+                       default=math.inf, metavar="S",
+                       help=help_with_range("isobus serve --duration",
+                                            "stop after S seconds of run time (default: until "
+                                            "Ctrl-C)"))
+    serve.add_argument("--drive-after", type=option_type("isobus serve --drive-after"),
+                       default=10.0, metavar="S",
+                       help=help_with_range("isobus serve --drive-after",
+                                            "stand still, key on, for S seconds before driving "
+                                            "the path, so an implement can connect (default "
+                                            "10)"))
+    serve.add_argument("--wheel-slip", type=option_type("isobus serve --wheel-slip"),
+                       default=0.0, metavar="F",
+                       help=help_with_range("isobus serve --wheel-slip",
+                                            "slip of the tractor's driven wheels: the "
+                                            "wheel-based speed over-reads by it (default 0)"))
     serve.add_argument("--out", type=Path, default=Path("isobus-out"), metavar="DIR",
                        help="where bus.log, tc.jsonl, as-applied.geojson and summary.json go")
     serve.add_argument("--quiet", action="store_true", help="no line per connection event")
     serve.set_defaults(func=_serve)
-
-
-def _check(args: argparse.Namespace) -> None:
-    if not (args.duration > 0):
-        raise ConfigError(f"--duration must be > 0 s, got {args.duration}", key="--duration")
-    if not (math.isfinite(args.drive_after) and args.drive_after >= 0):
-        raise ConfigError(f"--drive-after must be >= 0 s, got {args.drive_after}",
-                          key="--drive-after")
-    if not (0.0 <= args.wheel_slip < 1.0):
-        raise ConfigError(f"--wheel-slip must be in [0, 1), got {args.wheel_slip}",
-                          key="--wheel-slip")
 
 
 def _serve(args: argparse.Namespace) -> int:
@@ -64,7 +61,6 @@ def _serve(args: argparse.Namespace) -> int:
     from hil.isobus.serve import serve
     from hil.isobus.tractor import Tractor, TractorSetup
 
-    _check(args)
     field = load_field(args.field)
     rx = None if args.no_map else load_prescription(args.map, frame=field.frame)
     tractor = Tractor(TractorSetup(field=field, prescription=rx, drive_after_s=args.drive_after,
