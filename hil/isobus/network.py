@@ -191,9 +191,9 @@ class IsobusNetwork(Device):
                 due = min(due, self._app_next_due(cf, i, app))
         if self._contenders:
             due = min(due, self._contenders[0].at_s)
-        # finite even when idle: hil.rig.runner turns next_due into ticks with math.ceil, which
-        # fails on inf although Device.next_due allows it (reported; an idle network is polled
-        # once a minute meanwhile)
+        # finite even when idle: hil.rig.runner asks a device's next_due only after its emit,
+        # not after on_frame, so timers a received frame starts (TP/ETP sessions) would wait
+        # for the due time given before it; an idle network is polled once a minute
         due = min(due, time_s + IDLE_RECHECK_S)
         return max(due, math.nextafter(time_s, math.inf))
 
