@@ -40,8 +40,10 @@ no other value the standard would have it fall back to.
 
 Time: the network never reads a clock. The controller's time is its control step count times
 its period (in lockstep one step per SYNC, so run time = SYNC count x 0.1 s); frames that
-arrive between two steps are stamped with the time of the last step, and each step first lets
-the network send what is due by then. Free-running (a daemon's ``--period-ms``), the same
+arrive between two steps are stamped with the time of the last step, and each step first sends
+what the network answered to them (a CTS, a reply to a request) and what is due by then: the
+controller sends only in its step, as a firmware's 100 ms task does (ISO 11783-3's response
+time Tr is 200 ms), so in lockstep nothing it sends straddles two steps. Free-running (a daemon's ``--period-ms``), the same
 count is the controller's own tick clock, as a firmware's.
 """
 
@@ -323,15 +325,18 @@ class IsobusFlowController(FlowController):
         #: source -> (time heard, speed m/s) of the TECU's valid speeds
         self.speed_heard: dict[str, tuple[float, float]] = {}
         self.setpoint = {"Mode": float(MODE_FIELD)}    # FlowController's view: field mode
+        #: what the network answered to frames received since the last step (sent with it)
+        self._replies: list[can.Message] = []
 
     # --- frames in ----------------------------------------------------------------------
     def on_frame(self, msg: can.Message) -> list[can.Message]:
-        """Extended frames go to the ISOBUS network (its replies come back at once); SYNC
-        steps; flow module frames feed the rows; FertSetpoint is not listened to."""
+        """Extended frames go to the ISOBUS network (what it answers waits for the next step);
+        SYNC steps; flow module frames feed the rows; FertSetpoint is not listened to."""
         if msg.is_error_frame or msg.is_remote_frame:
             return []
         if msg.is_extended_id:
-            return self.network.on_frame(msg, self.clock_s)
+            self._replies.extend(self.network.on_frame(msg, self.clock_s))
+            return []
         if msg.arbitration_id == SYNC_ID:
             return self.step() if self.step_on_sync else []
         if msg.arbitration_id in self.flow_rows:
@@ -445,8 +450,9 @@ class IsobusFlowController(FlowController):
 
     # --- the control step ---------------------------------------------------------------
     def step(self) -> list[can.Message]:
-        """Let the network send what is due at this step's time, then run the law; the
-        analog command stays the step's last frame."""
+        """Send what the network answered since the last step and what is due at this step's
+        time, then run the law; the analog command stays the step's last frame."""
         self.clock_s = self.steps * self.adapter_params.period_s
-        isobus = self.network.emit(self.clock_s)
+        isobus = self._replies + self.network.emit(self.clock_s)
+        self._replies = []
         return isobus + super().step()
