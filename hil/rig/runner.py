@@ -36,6 +36,7 @@ from hil.record import Recorder, Verdict
 from hil.record.traces import load_traces, write_npz
 from hil.rig.base import Rig, RigContext
 from hil.rig.busload import BusLoad
+from hil.rig.device import Device
 from hil.rig.scenario import Scenario
 
 #: lockstep on the embedded software bus: the rig polls for the DUT's answer this long before
@@ -243,6 +244,11 @@ class _Loop:
         self.silence_limit_s = options.step_timeout_s
         #: lockstep: the first frame that straddled two steps, raised a control period later
         self._straddle: StepOrderError | None = None
+        #: per device, the tick it is due next (set by :meth:`run`); a device that takes a
+        #: frame is asked again (a received frame may start a timer: a transport session, a
+        #: reconfigured event timer), and the earliest such tick waits in ``_rx_due``
+        self._device_due: list[int] = []
+        self._rx_due = math.inf
 
     def _log(self, msg: can.Message, *, rx: bool) -> None:
         self._log_frame(msg, self._now(), rx=rx)
@@ -286,12 +292,23 @@ class _Loop:
         if not self.rig.admits(msg):
             return
         t = self.clock.time_s
-        for device in self.rig.devices:
+        for i, device in enumerate(self.rig.devices):
             if device.accepts(msg):
                 for reply in device.on_frame(msg, t):
                     self.send(reply)
+                self._requery(i, device, t)
                 return
         self.rig.on_dut_frame(msg, t)
+
+    def _requery(self, i: int, device: Device, t: float) -> None:
+        """Ask a device that took a frame when it is due now; keep the earlier tick."""
+        due_s = device.next_due(t)
+        if not math.isfinite(due_s) or i >= len(self._device_due):
+            return
+        due = math.ceil(due_s / self.dt - 1e-9)
+        if due < self._device_due[i]:
+            self._device_due[i] = due
+            self._rx_due = min(self._rx_due, due)
 
     def _count_for_flood(self, msg: can.Message) -> None:
         period = self.rig.control_period_s
@@ -354,6 +371,7 @@ class _Loop:
             return math.ceil(due_s / dt - 1e-9) if math.isfinite(due_s) else never
 
         device_due = [due_tick(d.next_due(-1.0)) for d in devices]
+        self._device_due = device_due
         next_device = min(device_due, default=ticks_total + 1)
         traced = rig.trace_signals()
         for name, (_, unit) in traced.items():
@@ -400,6 +418,9 @@ class _Loop:
                         signals = rig.trace_signals()
                         append_row(t, [signals[name][0] for name in trace_names])
                 complete_step()
+                if self._rx_due < next_device:    # a device that took a frame is due sooner
+                    next_device = int(self._rx_due)
+                self._rx_due = math.inf
                 if k >= ticks_total:
                     if self._straddle is not None:
                         raise self._straddle
@@ -419,6 +440,10 @@ class _Loop:
                         k = tick()
                         drain()
                         advance(1, dt)
+                        if self._rx_due < target:
+                            target = max(k, int(self._rx_due))
+                            next_device = min(next_device, target)
+                            self._rx_due = math.inf
                     if self.check_dut is not None and k >= next_dut_check:
                         self.check_dut()
                         self._check_answering()
