@@ -195,6 +195,9 @@ class FertilizerPlant:
         output module.
     stalled : bool
         Input (fault): the meter shaft is jammed.
+    row_engaged : tuple of bool
+        Input: each row's clutch (:meth:`engage_rows`); a disengaged roller stands and meters
+        nothing (its drag on the drive is kept: the clutch sits at the roller).
     time_s : float
         Simulated time (s).
     motor_speed_rpm, shaft_speed_rpm : float
@@ -263,6 +266,9 @@ class FertilizerPlant:
         # Inputs.
         self.command_v = 0.0
         self.stalled = False
+        self.row_engaged: tuple[bool, ...] = (True,) * rows
+        #: the gain each row meters with now: its roller's, or 0 with the clutch out
+        self._gain_now: list[float] = list(self.row_gain)
 
         # Drive constants (SI).
         self._ke = motor.ke_v_s_per_rad
@@ -292,7 +298,7 @@ class FertilizerPlant:
             # Per-row values the inner loop reads, packed so that one tuple unpacking replaces
             # four list subscripts per row and step; rebuilt when a row's flute charge changes.
             self._row_params = [(g, ch, co, so) for g, ch, co, so in zip(
-                self.row_gain, self._charge, self._cos_off, self._sin_off, strict=True)]
+                self._gain_now, self._charge, self._cos_off, self._sin_off, strict=True)]
             self._flute_lo, self._flute_hi = _flute_window(flute_offsets, self._flute_index)
             self._q_map = 0.0      # flow map value at ``_n_map`` (cache of the power law)
             self._n_map = 0.0
@@ -326,6 +332,27 @@ class FertilizerPlant:
         self._update_outputs()
 
     # ------------------------------------------------------------------ helpers
+    def engage_rows(self, engaged: tuple[bool, ...]) -> None:
+        """Set the row clutches (one flag per row, row 1 first) from the next step on.
+
+        Raises
+        ------
+        ValueError
+            Not one flag per row.
+        """
+        engaged = tuple(bool(e) for e in engaged)
+        if len(engaged) != self._rows:
+            raise ValueError(f"{len(engaged)} clutch states for {self._rows} rows")
+        if engaged == self.row_engaged:
+            return
+        self.row_engaged = engaged
+        self._gain_now = [g if e else 0.0 for g, e in zip(self.row_gain, engaged, strict=True)]
+        if self._core is not None:
+            self._core.set_gains(self._gain_now)
+        else:
+            self._row_params = [(g, *rest[1:]) for g, rest in
+                                zip(self._gain_now, self._row_params, strict=True)]
+
     def _draw_charge(self) -> float:
         return max(0.0, 1.0 + self.config.meter.flute_charge_sd_frac * self._z.next())
 
@@ -585,7 +612,7 @@ class FertilizerPlant:
                 indices[r] = k
                 ch = 1.0 + sd * znext()
                 charges[r] = ch if ch > 0.0 else 0.0
-                self._row_params[r] = (self.row_gain[r], charges[r], self._cos_off[r],
+                self._row_params[r] = (self._gain_now[r], charges[r], self._cos_off[r],
                                        self._sin_off[r])
         return _flute_window(offsets, indices)
 

@@ -219,7 +219,28 @@ static PyObject *core_metered(PlantCoreObject *self, PyObject *Py_UNUSED(ignored
     return tuple_of(self->pc.metered, self->pc.rows, self->pc.bound ? self->pc.dt : 0.0);
 }
 
+static PyObject *core_set_gains(PlantCoreObject *self, PyObject *gains)
+{
+    if (check_ready(self, 0) != 0) {
+        return NULL;
+    }
+    double buf[64];
+    if (self->pc.rows > 64) {
+        PyErr_Format(PyExc_ValueError, "at most 64 rows, got %d", self->pc.rows);
+        return NULL;
+    }
+    if (pyglue_doubles(gains, "gains", self->pc.rows, buf) != 0) {
+        return NULL;
+    }
+    for (int r = 0; r < self->pc.rows; ++r) {
+        self->pc.gain[r] = buf[r];
+    }
+    Py_RETURN_NONE;
+}
+
 static PyMethodDef core_methods[] = {
+    {"set_gains", (PyCFunction)core_set_gains, METH_O,
+     "set_gains(gains): every row's gain from now on (a row clutch: 0 disengaged)"},
     {"bind", (PyCFunction)core_bind, METH_VARARGS,
      "bind(dt, drive_constants, meter_constants, alpha, to_sensor, to_exit): the step size"},
     {"advance", (PyCFunction)(void (*)(void))core_advance, METH_FASTCALL,
