@@ -28,6 +28,9 @@ class RigContext:
     config_overrides: Mapping[str, Any] = field(default_factory=dict)
     #: where those overrides come from (named in config errors)
     config_source: str = ""
+    #: the scenario the rig is built for (a rig that plays an ISOBUS tractor reads its
+    #: ``tractor`` table); None: a rig built outside a run
+    scenario: Scenario | None = None
 
 
 class Rig(ABC):

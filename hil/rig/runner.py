@@ -663,7 +663,7 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
                          note=lambda t, kind, detail: notes.append(
                              {"t": round(t, 6), "kind": kind, "detail": detail}),
                          config_overrides=options.rig_config,
-                         config_source=options.rig_config_source)
+                         config_source=options.rig_config_source, scenario=scenario)
         if options.rig_config:
             rec.meta["rig_config_overrides"] = options.rig_config
         rig = rig_cls(ctx)

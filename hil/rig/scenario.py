@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from hil.config import key_text, load_toml
@@ -89,6 +89,69 @@ class Event:
 
 
 @dataclass(frozen=True)
+class TractorRun:
+    """The scenario's ``[tractor]`` table: the rig plays an ISOBUS tractor (ISO 11783).
+
+    Its tractor ECU and Task Controller (:class:`hil.isobus.tractor.Tractor`) drive a field
+    path over a prescription map; the DUT, an ISOBUS implement, claims an address, connects
+    to the TC and takes its rate and section states from it, its speed from the TECU::
+
+        [tractor]
+        field = "../fields/field-rect.geojson"        # relative to the scenario file
+        prescription = "../fields/rates-3zones.geojson"
+        drive_after_s = 8.0
+
+    Parameters
+    ----------
+    field : str
+        The field GeoJSON (boundary, work area, path legs: ``docs/guide/prescription-maps.md``),
+        relative to the scenario file.
+    prescription : str, optional
+        The prescription map GeoJSON, relative to the scenario file; empty: the TC sends no
+        rate (TC-BAS and TC-SC only).
+    drive_after_s : float, optional
+        When the tractor starts down the path; it stands at the start, key on, before.
+    wheel_slip : float, optional
+        Slip of the tractor's driven wheels, [0, 0.5]: the wheel-based speed (PGN 65096)
+        over-reads by it, the ground-based one (65097) does not.
+    overlap_tolerance_pct : float, optional
+        Share of a section's ground that may be covered already before TC-SC switches it off.
+    tc_memory_bytes : int, optional
+        The largest pool the TC accepts; a smaller one makes it refuse the DUT's DDOP.
+    """
+
+    field: str
+    prescription: str = ""
+    drive_after_s: float = 5.0
+    wheel_slip: float = 0.0
+    overlap_tolerance_pct: float = 50.0
+    tc_memory_bytes: int = 1 << 20
+
+    def __post_init__(self) -> None:
+        if not self.field:
+            raise ConfigError("the field file is required", key="field")
+        if not 0 <= self.drive_after_s <= MAX_DURATION_S:
+            raise ConfigError(f"drive_after_s must be in [0, {MAX_DURATION_S:g}] s, got "
+                              f"{self.drive_after_s}", key="drive_after_s")
+        if not 0.0 <= self.wheel_slip <= 0.5:
+            raise ConfigError(f"wheel_slip must be in [0, 0.5], got {self.wheel_slip}",
+                              key="wheel_slip")
+        if not 0.0 <= self.overlap_tolerance_pct <= 100.0:
+            raise ConfigError(f"overlap_tolerance_pct must be in [0, 100], got "
+                              f"{self.overlap_tolerance_pct}",
+                              key="overlap_tolerance_pct")
+        if not 0 < self.tc_memory_bytes <= 1 << 32:
+            raise ConfigError(f"tc_memory_bytes must be in [1, 2^32], got "
+                              f"{self.tc_memory_bytes}", key="tc_memory_bytes")
+
+    def resolved(self, base: Path) -> TractorRun:
+        """The same table with its file names made absolute against ``base``."""
+        def full(name: str) -> str:
+            return str((base / name).resolve()) if name else ""
+        return replace(self, field=full(self.field), prescription=full(self.prescription))
+
+
+@dataclass(frozen=True)
 class Scenario:
     """A scenario: what happens to the rig during one run.
 
@@ -115,6 +178,8 @@ class Scenario:
     bus_load : float, optional
         Other ECUs' traffic added to the bus, as a fraction of the rig's bit rate in [0, 1)
         (:mod:`hil.rig.busload`); needs real time and a bus with a bit rate. 0: none.
+    tractor : TractorRun, optional
+        The rig plays an ISOBUS tractor driving a field (rigs that support it).
 
     Raises
     ------
@@ -132,6 +197,7 @@ class Scenario:
     events: tuple[Event, ...] = ()
     tags: tuple[str, ...] = ()
     bus_load: float = 0.0
+    tractor: TractorRun | None = None
 
     def __post_init__(self) -> None:
         if not 0 < self.duration_s <= MAX_DURATION_S:
@@ -225,6 +291,8 @@ def load_scenario(path: str | Path) -> Scenario:
         and the key).
     """
     scenario = load_toml(path, Scenario)
+    if scenario.tractor is not None:
+        scenario = replace(scenario, tractor=scenario.tractor.resolved(Path(path).parent))
     for i, event in enumerate(scenario.events):
         if event.at_s > scenario.duration_s:
             raise ConfigError(f"event at {event.at_s:g} s is after the end of the run "
