@@ -1,0 +1,67 @@
+# The fertilizer controller built against a foreign database (issue 28): the RateMaster RC-400's
+# layout (docs/examples/byo-fertilizer/ratemaster_rc400.dbc). Its bus layer is generated from
+# that database by cantools (generate.sh -> generated/); the control core and the app loop are
+# the reference firmware's, unchanged. Included from ../CMakeLists.txt after include(CTest).
+set(BYO_DIR ${CMAKE_CURRENT_LIST_DIR})
+
+# the RC-400's frames, packed and unpacked by code generated from its own database
+add_library(agrihil_byo_rc400 STATIC ${BYO_DIR}/fertilizer_rc400_adapter.c
+            ${BYO_DIR}/generated/ratemaster_rc400.c)
+target_include_directories(agrihil_byo_rc400 PUBLIC ${BYO_DIR} ${BYO_DIR}/generated
+                           ${CMAKE_CURRENT_SOURCE_DIR}/hal)
+target_link_libraries(agrihil_byo_rc400 PUBLIC agrihil_core)
+
+add_executable(agrihil-fertilizer-rc400-fw ${BYO_DIR}/fertilizer_rc400_main.c)
+target_link_libraries(agrihil-fertilizer-rc400-fw PRIVATE agrihil_byo_rc400 agrihil_app)
+
+if(BUILD_TESTING)
+  add_executable(test_rc400_adapter ${BYO_DIR}/tests/test_rc400_adapter.c)
+  target_include_directories(test_rc400_adapter PRIVATE ${CMAKE_CURRENT_SOURCE_DIR}/tests)
+  target_link_libraries(test_rc400_adapter PRIVATE agrihil_byo_rc400)
+  add_test(NAME rc400_adapter COMMAND test_rc400_adapter)
+
+  # the Python build's frames (tests/make_vectors.py from dbc_adapter.py), byte for byte
+  add_executable(replay_rc400 ${BYO_DIR}/tests/replay_rc400.c)
+  target_link_libraries(replay_rc400 PRIVATE agrihil_byo_rc400)
+  set(RC400_VECTORS ${BYO_DIR}/tests/data/rc400-physical.txt
+      ${BYO_DIR}/tests/data/rc400-paper-literal.txt ${BYO_DIR}/tests/data/rc400-open-loop.txt)
+  add_test(NAME rc400_vectors COMMAND replay_rc400 ${RC400_VECTORS})
+  # the replay must see a difference: the physical vectors with the first nonzero drive
+  # command's first byte changed
+  file(READ ${BYO_DIR}/tests/data/rc400-physical.txt rc400_text)
+  string(REGEX MATCH "\nout 220 s [0-9a-f]*[1-9a-f][0-9a-f]*\n" rc400_first_command
+         "${rc400_text}")
+  string(SUBSTRING "${rc400_first_command}" 11 2 rc400_byte)
+  string(REPLACE "out 220 s ${rc400_byte}" "out 220 s ff" rc400_wrong_command
+         "${rc400_first_command}")
+  string(FIND "${rc400_text}" "${rc400_first_command}" rc400_at)
+  string(SUBSTRING "${rc400_text}" 0 ${rc400_at} rc400_head)
+  string(LENGTH "${rc400_first_command}" rc400_len)
+  math(EXPR rc400_tail_at "${rc400_at} + ${rc400_len}")
+  string(SUBSTRING "${rc400_text}" ${rc400_tail_at} -1 rc400_tail)
+  file(WRITE ${CMAKE_CURRENT_BINARY_DIR}/rc400-wrong.txt
+       "${rc400_head}${rc400_wrong_command}${rc400_tail}")
+  add_test(NAME rc400_vectors_detect_mismatch
+           COMMAND sh ${CMAKE_CURRENT_SOURCE_DIR}/tests/expect_exit.sh 1
+                   "the Python build 220 s ff" $<TARGET_FILE:replay_rc400>
+                   ${CMAKE_CURRENT_BINARY_DIR}/rc400-wrong.txt)
+  add_test(NAME rc400_vectors_detect_missing_file
+           COMMAND sh ${CMAKE_CURRENT_SOURCE_DIR}/tests/expect_exit.sh 1
+                   "no-such.txt: missing" $<TARGET_FILE:replay_rc400> no-such.txt)
+
+  # the command line is agrihil-fertilizer-fw's
+  set(RC400_FW $<TARGET_FILE:agrihil-fertilizer-rc400-fw>)
+  set(RC400_CLI ${CMAKE_CURRENT_SOURCE_DIR}/tests/expect_exit.sh)
+  add_test(NAME rc400_cli_unknown_param COMMAND sh ${RC400_CLI} 2 "unknown parameter 'kp9'"
+           ${RC400_FW} --bus socketcand:127.0.0.1:9 --param kp9=1)
+  add_test(NAME rc400_cli_law_contradiction COMMAND sh ${RC400_CLI} 2
+           "contradicts --law physical"
+           ${RC400_FW} --bus socketcand:127.0.0.1:9 --law physical --param mode=open-loop)
+  add_test(NAME rc400_cli_open_loop_rejects_gains COMMAND sh ${RC400_CLI} 2
+           "unknown parameter 'ki1'"
+           ${RC400_FW} --bus socketcand:127.0.0.1:9 --law open-loop --param ki1=0.5)
+  add_test(NAME rc400_cli_connection_refused COMMAND sh ${RC400_CLI} 1 "127.0.0.1:9"
+           ${RC400_FW} --bus socketcand:127.0.0.1:9 --param mode=physical --param ff_coeff=4.39)
+  add_test(NAME rc400_cli_help COMMAND sh ${RC400_CLI} 0 "agrihil-fertilizer-rc400-fw"
+           ${RC400_FW} --help)
+endif()
