@@ -218,8 +218,10 @@ def meter_pool(*, name: int, width_m: float, rows: int, latency_ms: int,
     for i in range(rows):
         section = b.element(ElementType.SECTION, f"Row {i + 1}", parent=boom)
         section_ids.append(section)
-        b.property(section, ddi=dd.DEVICE_ELEMENT_OFFSET_X, value=0, designator="Offset X",
-                   presentation=mm)
+        # ISO 11783-10: every element's offsets are from the device's reference point, not
+        # from its parent: the sections sit where the boom does
+        b.property(section, ddi=dd.DEVICE_ELEMENT_OFFSET_X, value=BOOM_OFFSET_X_MM,
+                   designator="Offset X", presentation=mm)
         b.property(section, ddi=dd.DEVICE_ELEMENT_OFFSET_Y,
                    value=-width_mm // 2 + i * row_mm + row_mm // 2, designator="Offset Y",
                    presentation=mm)
