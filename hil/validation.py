@@ -146,6 +146,17 @@ PROFILE_RANGES: dict[str, Range] = {
                                             "is an UNSIGNED16 of ms; 0 disables it"),
     "timing.max_frames_per_period": Range("int", 1, 100_000,
                                           why="frames a DUT may send in one period"),
+    "campaign.pass_probability": Range("float", 0, 1, low_open=True, high_open=True,
+                                       why="a probability; no finite campaign demonstrates "
+                                           "0 or 1"),
+    "campaign.confidence": Range("float", 0, 1, low_open=True, high_open=True,
+                                 why="the coverage of the one-sided exact bound"),
+    "campaign.sequential_good_probability": Range(
+        "float", 0, 1, low_open=True, high_open=True,
+        why="--sequential: the pass probability of a good build (above pass_probability)"),
+    "campaign.sequential_alpha": Range(
+        "float", 0, 0.5, low_open=True, high_open=True,
+        why="--sequential: the risk of failing a good build (below confidence)"),
 }
 
 

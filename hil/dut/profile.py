@@ -18,7 +18,8 @@ profile never starts a run. Layout (``dut_profiles/<rig>-<controller>-<kind>.tom
     [rig]         overrides of the rig's packaged config for this DUT's installation, e.g.
                   ``flow_sensor = { mode = "sliding" }``: checked by the rig's own loader,
                   applied to every run of this DUT (and recorded in each run's record)
-    [campaign]    pass_probability, confidence: what a ``hil campaign`` must demonstrate
+    [campaign]    pass_probability, confidence: what a ``hil campaign`` must demonstrate;
+                  sequential_good_probability, sequential_alpha: ``--sequential`` (Wald)
 
 In ``launch.command`` and ``build.command`` these placeholders are expanded: ``{python}``
 (this interpreter), ``{root}`` (the project root), ``{profile_dir}``, ``{build_dir}`` (the
@@ -272,17 +273,33 @@ class CampaignRequirement:
     """``[campaign]``: the pass probability a campaign must demonstrate.
 
     The campaign passes when the exact (Clopper-Pearson) lower bound of its pass rate, at
-    ``confidence``, reaches ``pass_probability``.
+    ``confidence``, reaches ``pass_probability``, and fails when the upper bound stays below
+    it. ``hil campaign --sequential`` runs Wald's sequential probability ratio test instead,
+    between a build at ``pass_probability`` (passed by mistake at most ``1 - confidence`` of
+    the time) and a good one at ``sequential_good_probability`` (failed by mistake at most
+    ``sequential_alpha`` of the time); both keys are needed only for ``--sequential``.
     """
 
     pass_probability: float
     confidence: float = 0.95
+    sequential_good_probability: float | None = None
+    sequential_alpha: float | None = None
 
     def __post_init__(self) -> None:
-        for name in ("pass_probability", "confidence"):
-            if not 0 < getattr(self, name) < 1:
-                raise ValueError(f"{name} must lie strictly between 0 and 1, got "
-                                 f"{getattr(self, name)!r}")
+        # ranges from hil.validation.PROFILE_RANGES (the reference page lists them)
+        check_key(self, "campaign", "pass_probability", "confidence")
+        if self.sequential_good_probability is not None:
+            check_key(self, "campaign", "sequential_good_probability")
+            if self.sequential_good_probability <= self.pass_probability:
+                raise ValueError(f"sequential_good_probability must be above pass_probability"
+                                 f" {self.pass_probability:g}, got "
+                                 f"{self.sequential_good_probability!r}")
+        if self.sequential_alpha is not None:
+            check_key(self, "campaign", "sequential_alpha")
+            if self.sequential_alpha >= self.confidence:
+                raise ValueError(f"sequential_alpha must be below confidence "
+                                 f"{self.confidence:g} (Wald's test needs alpha + beta < 1, "
+                                 f"beta = 1 - confidence), got {self.sequential_alpha!r}")
 
 
 @dataclass(frozen=True)
