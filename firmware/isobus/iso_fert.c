@@ -1,0 +1,366 @@
+#include "iso_fert.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "fertilizer.h"
+
+#define SYNC_ID 0x080u
+#define FLOW_MODULE1_ID 0x181u
+#define PGN_WHEEL_BASED_SPEED 0xFE48u
+#define PGN_GROUND_BASED_SPEED 0xFE49u
+#define MAX_VALID_SPEED_MPS 64.255 /* above: J1939 error / not available */
+#define MG_PER_M2_PER_KG_HA 100.0
+#define MAX_RATE_KG_HA 1000.0
+#define MIN_REPORT_SPEED_MPS 0.05
+#define RATE_CONTROL_FUNCTION 128u
+#define DEVICE_CLASS_FERTILIZERS 5u
+#define INDUSTRY_GROUP_AGRICULTURE 2u
+#define SPEED_SLACK_S 1e-9
+enum { GROUND = 0, WHEEL = 1 };
+
+void iso_fert_config_defaults(iso_fert_config_t *cfg, ppid_law_t law)
+{
+    memset(cfg, 0, sizeof *cfg);
+    fert_config_defaults(&cfg->fert, law);
+    cfg->address = 0x81;
+    cfg->identity_number = 0x0F27;
+    cfg->width_m = 3.0;
+    cfg->step_on_sync = true;
+}
+
+size_t iso_fert_param_refs(iso_fert_config_t *cfg, param_ref_t refs[ISO_FERT_PARAM_COUNT])
+{
+    size_t n = fert_param_refs(&cfg->fert, refs);
+    refs[n++] = (param_ref_t){"address", &cfg->address};
+    refs[n++] = (param_ref_t){"identity_number", &cfg->identity_number};
+    refs[n++] = (param_ref_t){"width_m", &cfg->width_m};
+    return n;
+}
+
+const char *iso_fert_check(const iso_fert_config_t *cfg)
+{
+    if (!(cfg->address == floor(cfg->address) && cfg->address >= 0.0 && cfg->address <= 253.0)) {
+        return "address must be an integer 0 .. 253";
+    }
+    if (!(cfg->identity_number == floor(cfg->identity_number) && cfg->identity_number >= 0.0 &&
+          cfg->identity_number < 2097152.0)) {
+        return "identity_number must be an integer below 2^21";
+    }
+    if (!(isfinite(cfg->width_m) && cfg->width_m > 0.0 && cfg->width_m <= 30.0)) {
+        return "width_m must be within (0, 30] m";
+    }
+    if (cfg->fert.core.law == PPID_LAW_OPEN_LOOP) {
+        return "the ISOBUS mode runs the closed-loop laws (physical, paper-literal), not "
+               "open-loop";
+    }
+    return NULL;
+}
+
+static uint64_t implement_name(uint32_t identity)
+{
+    return (uint64_t)identity | ((uint64_t)RATE_CONTROL_FUNCTION << 40) |
+           ((uint64_t)DEVICE_CLASS_FERTILIZERS << 49) |
+           ((uint64_t)INDUSTRY_GROUP_AGRICULTURE << 60) | ((uint64_t)1 << 63);
+}
+
+/* --- the control inputs ---------------------------------------------------------------------- */
+
+bool iso_fert_ground_speed(const iso_fert_t *c, double *mps, int *source)
+{
+    int order[2] = {GROUND, WHEEL};
+    int count = 2;
+    if (c->cfg.speed_wheel) {
+        order[0] = WHEEL;
+        count = 1;
+    }
+    for (int i = 0; i < count; i++) {
+        int s = order[i];
+        if (c->heard[s] &&
+            c->clock_s - c->heard_s[s] <= ISO_FERT_SPEED_TIMEOUT_S + SPEED_SLACK_S) {
+            *mps = c->heard_mps[s];
+            if (source != NULL) {
+                *source = s;
+            }
+            return true;
+        }
+    }
+    return false;
+}
+
+static int active_rows(const iso_fert_t *c)
+{
+    int n = 0;
+    for (int i = 0; i < FERT_ROWS; i++) {
+        n += c->sections[i] ? 1 : 0;
+    }
+    return n;
+}
+
+bool iso_fert_metering(const iso_fert_t *c)
+{
+    double v;
+    return tcc_connected(&c->tc) && c->rate_kg_ha > 0.0 &&
+           (c->work_state == -1 || c->work_state == 1) && active_rows(c) > 0 &&
+           iso_fert_ground_speed(c, &v, NULL);
+}
+
+static double actual_rate_kg_ha(const iso_fert_t *c)
+{
+    double v;
+    int rows = active_rows(c);
+    const fert_step_info_t *m = &c->adapter.last;
+    if (!iso_fert_ground_speed(c, &v, NULL) || v < MIN_REPORT_SPEED_MPS || !m->has_measurement ||
+        rows == 0 || !iso_fert_metering(c)) {
+        return 0.0;
+    }
+    double r = (double)rows;
+    return fmax(0.0, m->measured_gps * r / (0.1 * r * c->row_width_m * v));
+}
+
+/* The rows that are off are forgotten: their flow no longer counts in the mean. */
+static void switch_rows(iso_fert_t *c)
+{
+    for (int i = 0; i < FERT_ROWS; i++) {
+        if (!c->sections[i]) {
+            memset(&c->adapter.rows[i], 0, sizeof c->adapter.rows[i]);
+        }
+    }
+}
+
+static uint32_t pack_states(const iso_fert_t *c, bool metering_only)
+{
+    uint32_t v = 0;
+    for (unsigned slot = 0; slot < 16; slot++) {
+        uint32_t state = 3; /* not installed */
+        if (slot < FERT_ROWS) {
+            state = c->sections[slot] && (!metering_only || iso_fert_metering(c)) ? 1u : 0u;
+        }
+        v |= state << (2 * slot);
+    }
+    return v;
+}
+
+/* --- what the TC sets and reads -------------------------------------------------------------- */
+
+static uint8_t on_setpoint(void *ctx, uint16_t element, uint16_t ddi, int32_t value)
+{
+    iso_fert_t *c = ctx;
+    if (element != c->pool.boom) {
+        return ISO_ACK_DDI_NOT_SUPPORTED;
+    }
+    if (ddi == ISO_DDI_SETPOINT_MASS_PER_AREA_RATE) {
+        double rate = value / MG_PER_M2_PER_KG_HA;
+        if (!(rate >= 0.0 && rate <= MAX_RATE_KG_HA)) {
+            return ISO_ACK_OUT_OF_RANGE;
+        }
+        c->rate_kg_ha = rate;
+    } else if (ddi == ISO_DDI_SETPOINT_CONDENSED_1_16) {
+        uint32_t u = (uint32_t)value;
+        for (unsigned i = 0; i < FERT_ROWS; i++) {
+            c->sections[i] = ((u >> (2 * i)) & 0x3u) == 1u;
+        }
+    } else if (ddi == ISO_DDI_SETPOINT_WORK_STATE) {
+        if (value < 0 || value > 3) {
+            return ISO_ACK_VALUE_NOT_CONFORMING;
+        }
+        c->work_state = value;
+    } else {
+        return ISO_ACK_DDI_NOT_SUPPORTED;
+    }
+    switch_rows(c);
+    return 0;
+}
+
+static bool read_value(void *ctx, uint16_t element, uint16_t ddi, int64_t *value)
+{
+    iso_fert_t *c = ctx;
+    if (element != c->pool.boom) {
+        return false;
+    }
+    switch (ddi) {
+    case ISO_DDI_ACTUAL_MASS_PER_AREA_RATE:
+        *value = (int64_t)rint(actual_rate_kg_ha(c) * MG_PER_M2_PER_KG_HA);
+        return true;
+    case ISO_DDI_SETPOINT_MASS_PER_AREA_RATE:
+        *value = (int64_t)rint(c->rate_kg_ha * MG_PER_M2_PER_KG_HA);
+        return true;
+    case ISO_DDI_ACTUAL_WORK_STATE:
+        *value = iso_fert_metering(c) ? 1 : 0;
+        return true;
+    case ISO_DDI_ACTUAL_CONDENSED_1_16:
+        *value = pack_states(c, true);
+        return true;
+    case ISO_DDI_SETPOINT_CONDENSED_1_16:
+        *value = pack_states(c, false);
+        return true;
+    case ISO_DDI_SETPOINT_WORK_STATE:
+        *value = c->work_state;
+        return c->work_state >= 0;
+    default:
+        return false;
+    }
+}
+
+static void on_connection(void *ctx, bool connected)
+{
+    iso_fert_t *c = ctx;
+    (void)connected; /* a new connection starts from nothing: the TC sends its set-points again */
+    c->rate_kg_ha = 0.0;
+    c->work_state = -1;
+    for (int i = 0; i < FERT_ROWS; i++) {
+        c->sections[i] = true;
+    }
+    switch_rows(c);
+}
+
+static int write_pool(void *ctx, unsigned version, uint8_t *buf, size_t cap, size_t *size)
+{
+    iso_fert_t *c = ctx;
+    iso_ddop_params_t p = {c->name, c->cfg.width_m, FERT_ROWS, ISO_FERT_LATENCY_MS,
+                           c->cfg.ddop_broken, version};
+    iso_ddop_info_t info;
+    if (iso_meter_pool(&p, buf, cap, &info) != 0) {
+        return -1;
+    }
+    *size = info.size;
+    return 0;
+}
+
+static void on_speed(iso_fert_t *c, int source, const uint8_t *d, size_t len, double now_s)
+{
+    if (len != 8) {
+        return;
+    }
+    double speed = (double)(uint16_t)(d[0] | (d[1] << 8)) * 0.001;
+    if (speed >= 0.0 && speed <= MAX_VALID_SPEED_MPS) {
+        c->heard[source] = true;
+        c->heard_s[source] = now_s;
+        c->heard_mps[source] = speed;
+    }
+}
+
+static void deliver(void *ctx, uint32_t pgn, const uint8_t *data, size_t len, uint8_t source,
+                    uint8_t destination, double now_s)
+{
+    iso_fert_t *c = ctx;
+    if (pgn == PGN_GROUND_BASED_SPEED) {
+        on_speed(c, GROUND, data, len, now_s);
+    } else if (pgn == PGN_WHEEL_BASED_SPEED) {
+        on_speed(c, WHEEL, data, len, now_s);
+    } else {
+        tcc_on_group(&c->tc, pgn, data, len, source, destination, now_s);
+    }
+}
+
+/* ControllerStatus's three scaled fields with Python's round (half to even), as the Python
+ * controller encodes them (cantools / hil.rig.fastcodec: round((value - offset) / scale)).
+ * The generated encoders use C's round() (half away from zero): the two differ when a value
+ * falls exactly on half a step (the ideal meter's targets do, e.g. 25.005 g/s). The fix
+ * belongs in apps/fertilizer_adapter.c (encode with rint, as it already does for 0x220);
+ * until then this controller re-encodes the frame so that it matches the Python's. */
+static void python_rounded_status(hal_can_frame_t *f, const fert_step_info_t *info)
+{
+    struct fertilizer_controller_status_t st;
+    if (fertilizer_controller_status_unpack(&st, f->data, f->len) < 0) {
+        return;
+    }
+    double q = fmin(fmax(info->target_gps, 0.0), 250.0);
+    double m = fmin(fmax(info->measured_gps, 0.0), 250.0);
+    double v = fmin(fmax(info->out.volts, 0.0), 10.0);
+    st.target_flow = (uint16_t)rint(q / 0.01);
+    st.measured_flow = (uint16_t)rint(m / 0.01);
+    st.command_voltage = (uint16_t)rint(v / 0.001);
+    fertilizer_controller_status_pack(f->data, &st, sizeof f->data);
+}
+
+/* --- set-up and frames ------------------------------------------------------------------------- */
+
+int iso_fert_init(iso_fert_t *c, const iso_fert_config_t *cfg)
+{
+    memset(c, 0, sizeof *c);
+    c->cfg = *cfg;
+    fert_init(&c->adapter, &cfg->fert);
+    c->name = implement_name((uint32_t)cfg->identity_number);
+    c->row_width_m = cfg->width_m / FERT_ROWS;
+    c->work_state = -1;
+    for (int i = 0; i < FERT_ROWS; i++) {
+        c->sections[i] = true;
+    }
+    /* the pool's table (and a check that it fits TP) from the version 4 bytes */
+    static uint8_t scratch[ISO_DDOP_MAX_BYTES];
+    iso_ddop_params_t p = {c->name, cfg->width_m, FERT_ROWS, ISO_FERT_LATENCY_MS,
+                           cfg->ddop_broken, 4};
+    if (iso_meter_pool(&p, scratch, sizeof scratch, &c->pool) != 0) {
+        return -1;
+    }
+    iso_net_init(&c->net, c->name, (uint8_t)cfg->address, deliver, c);
+    tcc_implement_t impl = {c, on_setpoint, read_value, on_connection};
+    tcc_init(&c->tc, &c->net, &c->pool, impl, write_pool);
+    return 0;
+}
+
+hal_can_frame_t iso_fert_bootup(void)
+{
+    return fert_bootup();
+}
+
+static size_t take_network_frames(iso_fert_t *c)
+{
+    size_t n = c->net.nout;
+    memcpy(c->out, c->net.out, n * sizeof c->out[0]);
+    c->net.nout = 0;
+    return n;
+}
+
+size_t iso_fert_step(iso_fert_t *c)
+{
+    c->clock_s = (double)c->steps * c->cfg.fert.period_s;
+    iso_net_poll(&c->net, c->clock_s);
+    tcc_tick(&c->tc, c->clock_s);
+    size_t n = take_network_frames(c); /* the replies since the last step, then the due ones */
+    /* the adapter's field mode with the TC's rate, the active rows' width and the speed */
+    fert_setpoint_t *sp = &c->adapter.setpoint;
+    double v = 0.0;
+    bool has_speed = iso_fert_ground_speed(c, &v, NULL);
+    int rows = active_rows(c);
+    sp->seen = true;
+    sp->mode = 0;
+    sp->enable = iso_fert_metering(c);
+    sp->target_rate = c->rate_kg_ha;
+    sp->working_width = (double)rows * c->row_width_m;
+    sp->target_flow = 0.0;
+    sp->speed_source = 2;
+    sp->active_rows = (uint8_t)rows;
+    c->adapter.speed[2] = (fert_speed_t){has_speed, has_speed ? v : 0.0};
+    size_t first = n;
+    n += fert_step(&c->adapter, c->clock_s, c->out + n);
+    for (size_t i = first; i < n; i++) {
+        if (!c->out[i].extended && c->out[i].id == FERTILIZER_CONTROLLER_STATUS_FRAME_ID) {
+            python_rounded_status(&c->out[i], &c->adapter.last);
+        }
+    }
+    c->steps++;
+    c->nout = n;
+    return n;
+}
+
+size_t iso_fert_on_frame(iso_fert_t *c, const hal_can_frame_t *f)
+{
+    c->nout = 0;
+    if (f->extended) {
+        /* what the network answers waits in its outbox for the next step, as a firmware's
+         * 100 ms task sends (the Python controller does the same) */
+        iso_net_on_frame(&c->net, f, c->clock_s);
+        return 0;
+    }
+    if (f->id == SYNC_ID) {
+        return c->cfg.step_on_sync ? iso_fert_step(c) : 0;
+    }
+    if (f->id >= FLOW_MODULE1_ID && f->id < FLOW_MODULE1_ID + FERT_ROWS &&
+        c->sections[f->id - FLOW_MODULE1_ID]) {
+        /* stamped with the next step's time: the adapter counts staleness in steps */
+        fert_on_frame(&c->adapter, f, (double)c->steps * c->cfg.fert.period_s);
+    }
+    return 0;
+}

@@ -1,0 +1,391 @@
+#include "iso_net.h"
+
+#include <math.h>
+#include <string.h>
+
+#define CLAIM_WAIT_S 0.25
+#define CLAIM_PRIORITY 6u
+#define SELF_CONFIG_FIRST 128
+#define SELF_CONFIG_LAST 247
+#define TP_PRIORITY 7u
+#define TP_T3_S 1.25
+#define TP_T4_S 1.05
+#define TP_MAX_RETRANSMITS 2
+
+enum { CM_RTS = 16, CM_CTS = 17, CM_EOMA = 19, CM_BAM = 32, CM_ETP_RTS = 20, CM_ETP_CTS = 21,
+       CM_ETP_DPO = 22, CM_ETP_EOMA = 23, CM_ABORT = 255 };
+enum { ABORT_TIMEOUT = 3, ABORT_MAX_RETRANSMIT = 5, ABORT_OTHER = 250 };
+
+uint32_t iso_can_id(uint8_t priority, uint32_t pgn, uint8_t source, uint8_t destination)
+{
+    uint32_t pf = (pgn >> 8) & 0xFFu;
+    uint32_t ps = pf < 240 ? destination : (pgn & 0xFFu);
+    return ((uint32_t)priority << 26) | ((pgn & 0x3FF00u) << 8) | (ps << 8) | source;
+}
+
+void iso_net_init(iso_net_t *n, uint64_t name, uint8_t preferred, iso_deliver_fn deliver,
+                  void *ctx)
+{
+    memset(n, 0, sizeof *n);
+    n->name = name;
+    n->preferred = preferred;
+    n->self_configurable = (name >> 63) != 0;
+    n->current = ISO_NO_ADDRESS;
+    n->settle_at = INFINITY;
+    n->deliver = deliver;
+    n->ctx = ctx;
+}
+
+int iso_net_address(const iso_net_t *n)
+{
+    if (n->settled && n->current != ISO_NO_ADDRESS && n->current != (int)ISO_NULL) {
+        return n->current;
+    }
+    return ISO_NO_ADDRESS;
+}
+
+/* --- the address table --------------------------------------------------------------------- */
+
+static void table_on_claim(iso_net_t *n, uint8_t source, uint64_t name)
+{
+    for (unsigned a = 0; a < 256; a++) {
+        if (n->table_used[a] && n->table_name[a] == name && a != source) {
+            n->table_used[a] = false; /* the NAME moved */
+        }
+    }
+    if (source == ISO_NULL) {
+        return;
+    }
+    if (n->table_used[source] && n->table_name[source] < name) {
+        return; /* the lower NAME keeps the address */
+    }
+    n->table_used[source] = true;
+    n->table_name[source] = name;
+}
+
+/* --- frames out ------------------------------------------------------------------------------ */
+
+static void emit(iso_net_t *n, uint8_t priority, uint32_t pgn, uint8_t source,
+                 uint8_t destination, const uint8_t *data, size_t len)
+{
+    if (n->nout >= ISO_NET_MAX_OUT) {
+        n->dropped++;
+        return;
+    }
+    hal_can_frame_t *f = &n->out[n->nout++];
+    memset(f, 0, sizeof *f);
+    f->id = iso_can_id(priority, pgn, source, destination);
+    f->extended = true;
+    f->len = (uint8_t)len;
+    memcpy(f->data, data, len);
+    if (pgn == ISO_PGN_ADDRESS_CLAIMED && len == 8) {
+        table_on_claim(n, source, n->name); /* our own claim, as the bus echoes it */
+    }
+}
+
+static void send_claim(iso_net_t *n, uint8_t source)
+{
+    uint8_t data[8];
+    for (int i = 0; i < 8; i++) {
+        data[i] = (uint8_t)(n->name >> (8 * i));
+    }
+    emit(n, CLAIM_PRIORITY, ISO_PGN_ADDRESS_CLAIMED, source, ISO_GLOBAL, data, 8);
+}
+
+static void claim(iso_net_t *n, uint8_t address)
+{
+    n->current = address;
+    n->settled = false;
+    n->settle_at = n->now + CLAIM_WAIT_S;
+    send_claim(n, address);
+}
+
+static bool is_free(const iso_net_t *n, unsigned address)
+{
+    return !n->table_used[address] || n->table_name[address] == n->name;
+}
+
+static void on_claim(iso_net_t *n, uint8_t source, uint64_t name)
+{
+    if (n->current == ISO_NO_ADDRESS || n->current == (int)ISO_NULL || source != n->current ||
+        name == n->name) {
+        return;
+    }
+    if (name > n->name) {
+        send_claim(n, source); /* defended */
+        return;
+    }
+    if (n->self_configurable) {
+        for (unsigned a = SELF_CONFIG_FIRST; a <= SELF_CONFIG_LAST; a++) {
+            if (a != source && is_free(n, a)) {
+                claim(n, (uint8_t)a);
+                return;
+            }
+        }
+    }
+    n->current = ISO_NULL; /* cannot claim */
+    n->settled = false;
+    n->settle_at = INFINITY;
+    send_claim(n, ISO_NULL);
+}
+
+/* --- TP sender ------------------------------------------------------------------------------- */
+
+static void tp_cm(iso_net_t *n, const uint8_t body[5])
+{
+    const iso_tp_sender_t *s = &n->tp;
+    uint8_t data[8] = {body[0], body[1], body[2], body[3], body[4], (uint8_t)(s->pgn & 0xFFu),
+                       (uint8_t)((s->pgn >> 8) & 0xFFu), (uint8_t)((s->pgn >> 16) & 0xFFu)};
+    emit(n, TP_PRIORITY, ISO_PGN_TP_CM, s->source, s->destination, data, 8);
+}
+
+static void tp_start(iso_net_t *n, const iso_group_t *g, uint8_t source)
+{
+    iso_tp_sender_t *s = &n->tp;
+    memset(s, 0, sizeof *s);
+    s->open = true;
+    s->pgn = g->pgn;
+    s->source = source;
+    s->destination = g->destination;
+    s->priority = g->priority;
+    s->data = g->big;
+    s->size = g->big_len;
+    s->total = (uint16_t)((g->big_len + 6u) / 7u);
+    s->next_packet = 1;
+    uint8_t rts[5] = {CM_RTS, (uint8_t)(s->size & 0xFFu), (uint8_t)(s->size >> 8),
+                      (uint8_t)s->total, 0xFF};
+    tp_cm(n, rts);
+    s->waiting = TP_WAIT_CTS;
+    s->deadline = n->now + TP_T3_S;
+}
+
+static void tp_end(iso_net_t *n)
+{
+    n->tp.open = false;
+    if (n->ntp_queue > 0) {
+        iso_group_t next = n->tp_queue[0];
+        memmove(&n->tp_queue[0], &n->tp_queue[1], (n->ntp_queue - 1) * sizeof next);
+        n->ntp_queue--;
+        tp_start(n, &next, n->tp.source);
+    }
+}
+
+static void tp_abort(iso_net_t *n, uint8_t reason)
+{
+    uint8_t body[5] = {CM_ABORT, reason, 0xFF, 0xFF, 0xFF};
+    tp_cm(n, body);
+    tp_end(n);
+}
+
+static void tp_on_cts(iso_net_t *n, uint8_t packets, uint8_t next)
+{
+    iso_tp_sender_t *s = &n->tp;
+    if (packets == 0) {
+        s->waiting = TP_HELD;
+        s->deadline = n->now + TP_T4_S;
+        return;
+    }
+    unsigned last = (unsigned)next + packets - 1u;
+    if (next < 1 || last > s->total) {
+        tp_abort(n, ABORT_OTHER);
+        return;
+    }
+    if (next < s->next_packet) {
+        s->retransmits++;
+        if (s->retransmits > TP_MAX_RETRANSMITS) {
+            tp_abort(n, ABORT_MAX_RETRANSMIT);
+            return;
+        }
+    }
+    for (unsigned k = next; k <= last; k++) {
+        uint8_t data[8];
+        memset(data, 0xFF, sizeof data);
+        data[0] = (uint8_t)k;
+        size_t at = (k - 1u) * 7u;
+        size_t take = s->size - at < 7u ? s->size - at : 7u;
+        memcpy(data + 1, s->data + at, take);
+        emit(n, TP_PRIORITY, ISO_PGN_TP_DT, s->source, s->destination, data, 8);
+        if (k + 1u > s->next_packet) {
+            s->next_packet = (uint16_t)(k + 1u);
+        }
+    }
+    s->waiting = s->next_packet > s->total ? TP_WAIT_EOMA : TP_WAIT_CTS;
+    s->deadline = n->now + TP_T3_S;
+}
+
+/* A TP/ETP connection management frame from `source` to `destination` (ours). */
+static void tp_on_cm(iso_net_t *n, bool extended, const uint8_t *d, size_t len, uint8_t source,
+                     uint8_t destination)
+{
+    if (len < 8) {
+        return; /* malformed: the Python records it and goes on */
+    }
+    uint8_t c = d[0];
+    bool etp = c == CM_ETP_RTS || c == CM_ETP_CTS || c == CM_ETP_DPO || c == CM_ETP_EOMA;
+    bool known = etp || c == CM_RTS || c == CM_CTS || c == CM_EOMA || c == CM_BAM ||
+                 c == CM_ABORT;
+    if (!known || (c != CM_ABORT && etp != extended)) {
+        return;
+    }
+    uint32_t pgn = (uint32_t)d[5] | ((uint32_t)d[6] << 8) | ((uint32_t)d[7] << 16);
+    iso_tp_sender_t *s = &n->tp;
+    bool mine = s->open && s->source == destination && s->destination == source;
+    switch (c) {
+    case CM_CTS:
+        if (mine && pgn == s->pgn) {
+            tp_on_cts(n, d[1], d[2]);
+        }
+        break;
+    case CM_EOMA:
+    case CM_ETP_EOMA:
+        if (mine && pgn == s->pgn) {
+            tp_end(n);
+        }
+        break;
+    case CM_ABORT:
+        if (mine && pgn == s->pgn) {
+            tp_end(n);
+        }
+        break;
+    default:
+        break; /* RTS, BAM, ETP: this function receives no long groups (see iso_net.h) */
+    }
+}
+
+static void tp_poll(iso_net_t *n)
+{
+    if (n->tp.open && n->tp.deadline <= n->now) {
+        tp_abort(n, ABORT_TIMEOUT);
+    }
+}
+
+/* --- sending groups -------------------------------------------------------------------------- */
+
+static void flush(iso_net_t *n)
+{
+    int source = iso_net_address(n);
+    if (source == ISO_NO_ADDRESS || !n->started) {
+        return;
+    }
+    for (size_t i = 0; i < n->nqueue; i++) {
+        const iso_group_t *g = &n->queue[i];
+        if (g->big == NULL) {
+            emit(n, g->priority, g->pgn, (uint8_t)source, g->destination, g->data, g->len);
+        } else if (n->tp.open) {
+            if (n->ntp_queue < ISO_NET_TP_QUEUE) {
+                n->tp_queue[n->ntp_queue++] = *g;
+            } else {
+                n->dropped++;
+            }
+        } else {
+            tp_start(n, g, (uint8_t)source);
+        }
+    }
+    n->nqueue = 0;
+}
+
+void iso_net_send(iso_net_t *n, uint32_t pgn, const uint8_t *data, size_t len,
+                  uint8_t destination, uint8_t priority)
+{
+    if (n->nqueue >= ISO_NET_QUEUE || len > ISO_TP_MAX_BYTES) {
+        n->dropped++;
+        return;
+    }
+    iso_group_t *g = &n->queue[n->nqueue++];
+    memset(g, 0, sizeof *g);
+    g->pgn = pgn;
+    g->destination = destination;
+    g->priority = priority;
+    if (len <= 8) {
+        g->len = (uint8_t)len;
+        memcpy(g->data, data, len);
+    } else {
+        g->big = data;
+        g->big_len = (uint16_t)len;
+    }
+    flush(n);
+}
+
+/* --- time and frames in ---------------------------------------------------------------------- */
+
+void iso_net_poll(iso_net_t *n, double now_s)
+{
+    if (now_s > n->now) {
+        n->now = now_s;
+    }
+    if (!n->started && n->now >= 0.0) {
+        n->started = true;
+        claim(n, n->preferred);
+    }
+    if (!n->settled && n->now >= n->settle_at && n->current != ISO_NO_ADDRESS &&
+        n->current != (int)ISO_NULL) {
+        n->settled = true;
+        n->settle_at = INFINITY;
+    }
+    flush(n);
+    tp_poll(n);
+}
+
+static bool local(const iso_net_t *n, uint8_t address)
+{
+    return n->current == address && address != ISO_NULL;
+}
+
+void iso_net_on_frame(iso_net_t *n, const hal_can_frame_t *f, double now_s)
+{
+    if (!f->extended) {
+        return;
+    }
+    if (now_s > n->now) {
+        n->now = now_s;
+    }
+    uint32_t pf = (f->id >> 16) & 0xFFu;
+    uint32_t ps = (f->id >> 8) & 0xFFu;
+    uint8_t source = (uint8_t)(f->id & 0xFFu);
+    uint32_t page = (f->id >> 24) & 0x3u;
+    uint32_t pgn;
+    uint8_t destination;
+    if (pf < 240) {
+        pgn = (page << 16) | (pf << 8);
+        destination = (uint8_t)ps;
+    } else {
+        pgn = (page << 16) | (pf << 8) | ps;
+        destination = ISO_GLOBAL;
+    }
+    const uint8_t *d = f->data;
+    size_t len = f->len;
+    if (pgn == ISO_PGN_ADDRESS_CLAIMED) {
+        if (len != 8) {
+            return;
+        }
+        uint64_t name = 0;
+        for (int i = 7; i >= 0; i--) {
+            name = (name << 8) | d[i];
+        }
+        table_on_claim(n, source, name);
+        on_claim(n, source, name);
+        return;
+    }
+    if (pgn == ISO_PGN_REQUEST && len >= 3 && d[0] == 0x00 && d[1] == 0xEE && d[2] == 0x00) {
+        /* ISO 11783-5: a request for the address claimed, to everyone or to us */
+        if (n->current != ISO_NO_ADDRESS &&
+            (destination == ISO_GLOBAL || destination == n->current)) {
+            send_claim(n, (uint8_t)n->current);
+        }
+    }
+    if (pgn == ISO_PGN_TP_CM || pgn == ISO_PGN_TP_DT || pgn == ISO_PGN_ETP_CM ||
+        pgn == ISO_PGN_ETP_DT) {
+        if ((destination == ISO_GLOBAL || local(n, destination)) &&
+            (pgn == ISO_PGN_TP_CM || pgn == ISO_PGN_ETP_CM)) {
+            tp_on_cm(n, pgn == ISO_PGN_ETP_CM, d, len, source, destination);
+        }
+        return;
+    }
+    if (destination != ISO_GLOBAL && !local(n, destination)) {
+        return;
+    }
+    if (n->current == source) {
+        return; /* our own group (or one from our address) */
+    }
+    n->deliver(n->ctx, pgn, d, len, source, destination, n->now);
+}

@@ -1,0 +1,26 @@
+# The fertilizer controller as an ISOBUS implement (issue 27): address claim, TP, a Task
+# Controller client, the DDOP, on the firmware's fertilizer adapter. Included from
+# firmware/CMakeLists.txt after include(CTest).
+set(ISOBUS_DIR ${CMAKE_CURRENT_SOURCE_DIR}/isobus)
+
+# pure logic: frames in + step count -> frames out (no I/O, no clock, no allocation)
+add_library(agrihil_isobus STATIC ${ISOBUS_DIR}/iso_ddop.c ${ISOBUS_DIR}/iso_net.c
+            ${ISOBUS_DIR}/iso_tc.c ${ISOBUS_DIR}/iso_fert.c)
+target_include_directories(agrihil_isobus PUBLIC ${ISOBUS_DIR})
+target_link_libraries(agrihil_isobus PUBLIC agrihil_adapters)
+
+add_executable(agrihil-fertilizer-isobus-fw ${ISOBUS_DIR}/isobus_main.c)
+target_link_libraries(agrihil-fertilizer-isobus-fw PRIVATE agrihil_isobus agrihil_app)
+
+if(BUILD_TESTING)
+  add_executable(replay_isobus ${ISOBUS_DIR}/replay_isobus.c)
+  target_link_libraries(replay_isobus PRIVATE agrihil_isobus)
+  # the shared vectors of the Python build: every frame the C controller sends must be the
+  # Python controller's, byte for byte, in order
+  set(ISOBUS_VECTORS isobus-drive.frames isobus-refused.frames isobus-contention.frames)
+  set(ISOBUS_VECTOR_PATHS)
+  foreach(v ${ISOBUS_VECTORS})
+    list(APPEND ISOBUS_VECTOR_PATHS ${AGRIHIL_VECTORS_DIR}/${v})
+  endforeach()
+  add_test(NAME isobus_vectors COMMAND replay_isobus ${ISOBUS_VECTOR_PATHS})
+endif()
