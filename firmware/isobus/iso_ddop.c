@@ -184,7 +184,8 @@ int iso_meter_pool(const iso_ddop_params_t *p, uint8_t *buf, size_t cap, iso_ddo
         designator[at] = '\0';
         unsigned section = id++;
         element(&w, section, DET_SECTION, designator, 2u + (unsigned)i, BOOM, id, 3);
-        property(&w, id++, ISO_DDI_OFFSET_X, 0, "Offset X", MM);
+        /* offsets are from the device's reference point (ISO 11783-10): the boom's */
+        property(&w, id++, ISO_DDI_OFFSET_X, BOOM_OFFSET_X_MM, "Offset X", MM);
         property(&w, id++, ISO_DDI_OFFSET_Y,
                  floordiv(-width_mm, 2) + i * row_mm + floordiv(row_mm, 2), "Offset Y", MM);
         property(&w, id++, ISO_DDI_ACTUAL_WORKING_WIDTH, row_mm, "Width", MM);

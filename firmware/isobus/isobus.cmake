@@ -17,10 +17,28 @@ if(BUILD_TESTING)
   target_link_libraries(replay_isobus PRIVATE agrihil_isobus)
   # the shared vectors of the Python build: every frame the C controller sends must be the
   # Python controller's, byte for byte, in order
-  set(ISOBUS_VECTORS isobus-drive.frames isobus-refused.frames isobus-contention.frames)
+  set(ISOBUS_VECTORS isobus-drive.frames isobus-refused.frames isobus-contention.frames
+      isobus-scripted-tc.frames isobus-tc-no-memory.frames)
   set(ISOBUS_VECTOR_PATHS)
   foreach(v ${ISOBUS_VECTORS})
     list(APPEND ISOBUS_VECTOR_PATHS ${AGRIHIL_VECTORS_DIR}/${v})
   endforeach()
   add_test(NAME isobus_vectors COMMAND replay_isobus ${ISOBUS_VECTOR_PATHS})
+  # the replay fails on a vector with one byte changed, on one that lacks a frame the
+  # controller sends, and on a missing file, and says where
+  set(CLI ${CMAKE_CURRENT_SOURCE_DIR}/tests/expect_exit.sh)
+  add_test(NAME isobus_vectors_detect_changed_byte
+           COMMAND sh ${CLI} 1 "vector 14CBF781#1004FF1100010500, C controller 14CBF781#1004FF1100010400"
+                   $<TARGET_FILE:replay_isobus> ${ISOBUS_DIR}/data/wrong-version.frames)
+  add_test(NAME isobus_vectors_detect_missing_frame
+           COMMAND sh ${CLI} 1 "vector 14CBF781#1004FF1100010400, C controller 18EAFF81#0FFE00"
+                   $<TARGET_FILE:replay_isobus> ${ISOBUS_DIR}/data/missing-frame.frames)
+  add_test(NAME isobus_vectors_detect_missing_file
+           COMMAND sh ${CLI} 2 "no-such.frames: missing"
+                   $<TARGET_FILE:replay_isobus> ${ISOBUS_DIR}/data/no-such.frames)
+
+  # the DDOP bytes: the C writer against the Python's meter_pool(), versions 4 and 3
+  add_executable(test_iso_ddop ${ISOBUS_DIR}/test_iso_ddop.c)
+  target_link_libraries(test_iso_ddop PRIVATE agrihil_isobus)
+  add_test(NAME isobus_ddop COMMAND test_iso_ddop ${AGRIHIL_VECTORS_DIR}/isobus-ddop.txt)
 endif()

@@ -30,7 +30,13 @@ Scenarios:
 * ``isobus-refused``: a DDOP the TC refuses (``ddop=broken``);
 * ``isobus-contention``: another NAME takes the controller's address (it moves to the next
   free self-configurable address and the TC learns of it), requests for the address claim,
-  a defended claim, the wheel-based speed variant, non-default parameters.
+  a defended claim, the wheel-based speed variant, non-default parameters;
+* ``isobus-scripted-tc``: a scripted TC (fixed frames at fixed times, not the emulated one)
+  that goes where a well-behaved TC does not: a CTS hold, a retransmission request, a CTS
+  beyond the message (abort 250), every kind of process data command with good and bad
+  elements, DDIs, values and triggers, malformed frames, NACKs to others and to the
+  controller, a version request timing out, no language command, an activation refused;
+* ``isobus-tc-no-memory``: a scripted TC without memory for the pool.
 """
 
 from __future__ import annotations
@@ -43,13 +49,18 @@ from pathlib import Path
 import can
 
 from hil.isobus.can_id import encode_id
+from hil.isobus.ddop import ObjectPool
 from hil.isobus.faults import Contend, DropCts, IsobusFaults
 from hil.isobus.field import load_field, load_prescription
 from hil.isobus.tractor import Tractor, TractorSetup
-from hil.isobus.wire import VirtualWire
+from hil.isobus.wire import ScriptedNode, VirtualWire
 from hil.rig.device import Device
 from plant_emulators.fertilizer.frames import FertilizerDatabase
-from reference_controllers.fertilizer.isobus_mode import IsobusFlowController
+from reference_controllers.fertilizer.isobus_mode import (
+    IsobusFlowController,
+    implement_name,
+    meter_pool,
+)
 from reference_controllers.vectors import VECTOR_DIR, params_line
 
 FIELDS = Path(__file__).resolve().parents[2] / "plant_emulators" / "fertilizer" / "fields"
@@ -114,6 +125,8 @@ class Scenario:
     #: (run time, action on the tractor and the wire) in time order
     actions: tuple[tuple[float, Callable[[Tractor, VirtualWire], None]], ...] = ()
     drop: Callable[[can.Message, int], bool] | None = None
+    #: instead of the emulated tractor, a scripted peer: (run time, frame) to send
+    script: Callable[[], list[tuple[float, can.Message]]] | None = None
 
 
 def _tractor(slip: float, faults: IsobusFaults) -> Tractor:
@@ -125,15 +138,23 @@ def _tractor(slip: float, faults: IsobusFaults) -> Tractor:
 
 def record(s: Scenario) -> list[str]:
     """Run ``s`` and return the vector file's lines."""
-    tractor = _tractor(s.slip, s.faults())
     ctl = IsobusFlowController(str(s.params["law"]),
                                {k: v for k, v in s.params.items() if k != "law"})
     node = RecordingNode(ctl)
+    if s.script is not None:
+        wire = VirtualWire([ScriptedNode(s.script(), "scripted TC"), node])
+        wire.run_until(s.end_s)
+        return _lines(s, ctl, node)
+    tractor = _tractor(s.slip, s.faults())
     wire = VirtualWire([tractor.network, node], drop=s.drop)
     for at_s, action in s.actions:
         wire.run_until(at_s)
         action(tractor, wire)
     wire.run_until(s.end_s)
+    return _lines(s, ctl, node)
+
+
+def _lines(s: Scenario, ctl: IsobusFlowController, node: RecordingNode) -> list[str]:
     head = [f"# {line}" for line in s.description.splitlines()]
     head.append(f"# {ctl.steps} control steps; written by python -m "
                 f"reference_controllers.vectors.isobus")
@@ -161,6 +182,110 @@ def _inject(pgn: int, source: int, destination: int, data: bytes,
     def act(tractor: Tractor, wire: VirtualWire) -> None:
         wire.inject(frame)
     return act
+
+
+TC = 0xF7
+TECU = 0x80
+ME = 0x81
+
+
+def _frame(priority: int, pgn: int, source: int, destination: int, hex_data: str,
+           ) -> can.Message:
+    return can.Message(arbitration_id=encode_id(priority, pgn, source, destination),
+                       data=bytes.fromhex(hex_data.replace(" ", "")), is_extended_id=True)
+
+
+def _pd(hex_data: str) -> can.Message:
+    """Process data from the scripted TC to the controller."""
+    return _frame(5, 0xCB00, TC, ME, hex_data)
+
+
+def _element(command: int, element: int, ddi: int, value: int) -> str:
+    return (bytes([command | (element & 0xF) << 4, element >> 4]) + ddi.to_bytes(2, "little")
+            + (value & 0xFFFFFFFF).to_bytes(4, "little")).hex()
+
+
+def _status(task_active: bool = False) -> can.Message:
+    return _frame(3, 0xCB00, TC, 0xFF, f"FEFFFFFF{1 if task_active else 0:02X}0000FF")
+
+
+def _cts(packets: int, next_packet: int) -> can.Message:
+    return _frame(7, 0xEC00, TC, ME, f"11{packets:02X}{next_packet:02X}FFFF00CB00")
+
+
+def _speed(mps: float) -> can.Message:
+    raw = round(mps * 1000)
+    return _frame(3, 0xFE49, TECU, 0xFF, f"{raw & 0xFF:02X}{raw >> 8:02X}0000000000FD")
+
+
+def _connect_script() -> list[tuple[float, can.Message]]:
+    """Status, version, language, an unknown structure label: up to the transfer request."""
+    return [(0.45, _status()), (0.55, _pd("10 04 FF 15 00 01 10 00")),
+            (0.55, _pd("00 FF FF FF FF FF FF FF")),
+            (0.65, _frame(6, 0xFE0F, TC, 0xFF, "656E000000000000")),
+            (0.75, _pd("11 FF FF FF FF FF FF FF"))]
+
+
+def _scripted_tc() -> list[tuple[float, can.Message]]:
+    rows_12_on = 0xFFFFFF05          # slots 0, 1 on, 2, 3 off, the rest not installed
+    script = [
+        *_connect_script(),
+        (0.85, _pd("51 00 FF FF FF FF FF FF")),                 # transfer: go ahead
+        (0.95, _cts(16, 1)), (1.05, _cts(0, 17)),                # 16 packets, then a hold
+        (1.15, _cts(16, 1)), (1.25, _cts(16, 17)),               # a retransmission, on
+        (1.35, _cts(255, 33)),                                   # beyond the message: abort
+        (1.45, _pd("71 00 5F 03 00 00 FF FF")),                  # "transfer ok" anyway
+        (1.55, _pd("91 00 FF FF FF FF 00 FF")),                  # activated
+        (1.65, _pd(_element(0x3, 1, 6, 16000))),                 # 160 kg/ha, no ack
+        (1.65, _pd(_element(0xA, 1, 6, 20000))),                 # 200 kg/ha, ack
+        (1.75, _pd(_element(0x3, 1, 6, 200000))),                # 2000 kg/ha: out of range
+        (1.75, _pd(_element(0x3, 1, 7, 5))),                     # not settable
+        (1.75, _pd(_element(0x3, 9, 6, 5))),                     # no element 9
+        (1.75, _pd(_element(0x3, 1, 999, 5))),                   # no such DDI
+        (1.75, _pd(_element(0x3, 2, 6, 5))),                     # a section has no DDI 6
+        (1.85, _pd(_element(0x3, 1, 289, 5))),                   # work state 5
+        (1.85, _pd(_element(0xA, 1, 289, 1))),
+        (1.85, _pd(_element(0x3, 1, 290, rows_12_on))),
+        (1.95, _pd(_element(0x2, 1, 7, -1))), (1.95, _pd(_element(0x2, 1, 141, -1))),
+        (1.95, _pd(_element(0x2, 1, 161, -1))), (1.95, _pd(_element(0x2, 1, 290, -1))),
+        (1.95, _pd(_element(0x2, 1, 289, -1))), (1.95, _pd(_element(0x2, 1, 6, -1))),
+        (1.95, _pd(_element(0x2, 1, 142, -1))),                  # a property, not a DPD
+        (2.05, _pd(_element(0x2, 0, 0xDFFF, -1))),               # the default set
+        (2.05, _pd(_element(0x4, 1, 7, 500))),                   # time interval 500 ms
+        (2.05, _pd(_element(0x8, 1, 141, 1))),                   # on change
+        (2.05, _pd(_element(0x8, 1, 6, 100))),
+        (2.05, _pd(_element(0x6, 1, 7, 100))),                   # threshold: not offered
+        (2.05, _pd(_element(0x5, 1, 7, 1000))),                  # distance: no source
+        (2.05, _pd(_element(0x4, 1, 161, 0))),                   # a zero interval
+        (2.05, _pd(_element(0x4, 1, 6, 1000))),                  # time: not offered
+        (2.05, _pd(_element(0x8, 1, 161, -5))),                  # a negative threshold
+        (2.05, _pd(_element(0x8, 1, 161, 1))),
+        (2.15, _pd("99 00 06 00 00 00 00 00")),                  # peer control: ignored
+        (2.15, _pd("03 10 06 00 00")),                           # too short: ignored
+        (2.15, _pd("0D 00 06 00 00 F3 FF FF")),                  # the TC's acknowledge
+        (2.15, _pd("FF FF FF FF 00 00 00 00")),                  # a client task from it
+        (2.15, _pd("C1 FF FF FF FF FF FF FF")),                  # reserved sub-command
+        (2.45, _status(task_active=True)),
+        (3.05, _frame(6, 0xE800, TC, 0xFF, "01FFFFFF9000CB00")),  # NACK to another
+        (3.15, _frame(6, 0xE800, TC, 0xFF, "01FFFFFF8100CC00")),  # NACK of another PGN
+        (3.55, _frame(6, 0xE800, TC, ME, "01FFFFFF8100CB00")),    # NACK to us: restart
+        (4.45, _status()),
+        # the restarted attempt's version request times out (2 s): lost, waiting for status
+        (6.45, _status()), (6.55, _pd("10 04 FF 15 00 01 10 00")),
+        # no language command: after 2 s on without it, the structure label is asked for
+        (8.45, _status()),
+        (8.65, _pd("11 41 47 46 2D 49 53 4F")),                  # AGF-ISO: the known pool
+        (8.75, _pd("31 65 6E 00 00 00 00 FF")),                  # en: no transfer
+        (8.85, _pd("91 01 05 00 0D 00 01 FF")),                  # refused, object 13
+        (8.95, _pd(_element(0x2, 1, 7, -1))),                    # ignored now
+        (10.45, _status()),
+    ]
+    script += [(0.05 + 0.1 * k, _speed(2.0)) for k in range(10, 80)]
+    return script
+
+
+def _scripted_no_memory() -> list[tuple[float, can.Message]]:
+    return [*_connect_script(), (0.85, _pd("51 01 FF FF FF FF FF FF")), (2.45, _status())]
 
 
 def _drop_first_cts() -> IsobusFaults:
@@ -202,7 +327,41 @@ def scenarios() -> list[Scenario]:
                      (9.0, _inject(0xEE00, 0x81, 0xFF, (0xF000000000000000).to_bytes(8,
                                                                                 "little"))),
                      (9.5, _inject(0xEA00, 0xF7, 0xFF, b"\x0d\xfe\x00")))),
+        Scenario(
+            "isobus-scripted-tc",
+            "A scripted TC: a CTS hold, a retransmission, a CTS beyond the message (abort\n"
+            "250); process data commands good and bad (elements, DDIs, values, triggers),\n"
+            "malformed frames, NACKs to others and to the controller (restart), a version\n"
+            "request timing out, no language command, an activation refused.",
+            {"law": "physical"}, 11.0, script=_scripted_tc),
+        Scenario(
+            "isobus-tc-no-memory",
+            "A scripted TC without memory for the pool: refused before the transfer.",
+            {"law": "physical"}, 3.0, script=_scripted_no_memory),
     ]
+
+
+DDOP_FILE = "isobus-ddop.txt"
+#: (identity number, width m, rows, latency ms, broken) of the pools the C writer is held to
+DDOP_CASES = (
+    (0x0F27, 3.0, 4, 430, False), (0x0F27, 3.0, 4, 430, True), (4242, 2.4, 4, 430, False),
+    (1, 0.001, 1, 0, False), (0x1FFFFF, 30.0, 16, 65535, False), (77, 12.345, 7, 250, False),
+    (123, 9.9995, 10, 1, True), (5, 0.75, 3, 430, False), (6, 3.0005, 13, 99, False),
+)
+
+
+def ddop_lines() -> list[str]:
+    """``identity width_m rows latency_ms broken version hex`` per pool (version 4 and 3)."""
+    lines = ["# The meter's DDOP as the Python writes it (meter_pool), for the C writer's test:",
+             "# identity_number width_m rows latency_ms broken version bytes(hex)"]
+    for identity, width, rows, latency, broken in DDOP_CASES:
+        pool, _ = meter_pool(name=implement_name(identity).value, width_m=width, rows=rows,
+                             latency_ms=latency, broken=broken)
+        for version in (4, 3):
+            raw = ObjectPool(pool.objects, version).to_bytes()
+            lines.append(f"{identity} {width!r} {rows} {latency} {int(broken)} {version} "
+                         f"{raw.hex().upper()}")
+    return lines
 
 
 def write_all(directory: Path = VECTOR_DIR,
@@ -215,6 +374,10 @@ def write_all(directory: Path = VECTOR_DIR,
             continue
         path = directory / f"{s.name}{SUFFIX}"
         path.write_text("\n".join(record(s)) + "\n")
+        paths.append(path)
+    if wanted is None or DDOP_FILE in wanted:
+        path = directory / DDOP_FILE
+        path.write_text("\n".join(ddop_lines()) + "\n")
         paths.append(path)
     return paths
 
