@@ -32,3 +32,7 @@ def fertilizer_open_loop(**params: ParamValue) -> Controller:
 
 def sowing_depth_fuzzy_pid(**params: ParamValue) -> Controller:
     return _make("sowing-depth-fuzzy-pid", params)
+
+
+def sowing_depth_dp200(**params: ParamValue) -> Controller:
+    return _make("sowing-depth-dp200", params)

@@ -11,6 +11,9 @@ isobus                     and sections from a TC, speed from the TECU
 fertilizer-rc400           [F] piecewise PID speaking the RC-400's own      100 ms
                            database (docs/examples/byo-fertilizer)
 sowing-depth-fuzzy-pid     [D] fuzzy self-tuning PID, CiA 402 master       10 ms
+sowing-depth-dp200         [D] fuzzy PID speaking the DP-200's own         10 ms
+                           database, remapping the drive's PDOs at boot
+                           (docs/examples/byo-depth)
 =========================  ==============================================  ==============
 """
 
@@ -71,6 +74,16 @@ def _depth(params: dict[str, ParamValue], step_on_sync: bool) -> Controller:
     return DepthController(params, step_on_sync=step_on_sync)
 
 
+def _dp200(params: dict[str, ParamValue], step_on_sync: bool) -> Controller:
+    from reference_controllers.sowing_depth.dbc_adapter import (
+        DP200_DATABASE,
+        DP200_SIGNALS,
+        DbcDepthController,
+    )
+
+    return DbcDepthController(DP200_DATABASE, DP200_SIGNALS, params, step_on_sync=step_on_sync)
+
+
 CONTROLLERS: dict[str, ControllerKind] = {k.name: k for k in (
     ControllerKind("fertilizer-piecewise-pid", "[F] piecewise PID (mode physical or "
                    "paper-literal)", 0.1, _piecewise),
@@ -80,6 +93,8 @@ CONTROLLERS: dict[str, ControllerKind] = {k.name: k for k in (
     ControllerKind("fertilizer-rc400", "[F] piecewise PID on a foreign database (the RC-400 "
                    "of docs/examples/byo-fertilizer)", 0.1, _rc400),
     ControllerKind("sowing-depth-fuzzy-pid", "[D] fuzzy self-tuning PID", 0.01, _depth),
+    ControllerKind("sowing-depth-dp200", "[D] fuzzy PID on a foreign database, remapping the "
+                   "drive's PDOs at boot (the DP-200 of docs/examples/byo-depth)", 0.01, _dp200),
 )}
 
 
