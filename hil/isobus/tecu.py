@@ -151,6 +151,9 @@ class TractorEcu:
         self.wheel_distance_m = 0.0
         self.ground_distance_m = 0.0
         self.sent = 0
+        #: True: the TECU sends nothing (its speed is lost to the implement); the schedule and
+        #: the distances go on
+        self.silent = False
         db = iso11783_7_database()
         self._wheel = db.get_message_by_name("WheelBasedSpeedDist")
         self._ground = db.get_message_by_name("GroundBasedSpeedDist")
@@ -171,7 +174,8 @@ class TractorEcu:
         state = self.truth(now_s)
         self._integrate(state, now_s)
         for pgn, data in self.encode(state):
-            self.port.send(pgn, data, priority=PRIORITY)
+            if not self.silent:
+                self.port.send(pgn, data, priority=PRIORITY)
         self.sent += 1
         if self._first_s is None:
             self._first_s = now_s

@@ -46,7 +46,8 @@ from hil.isobus.tc.server import ServerOptions, TaskControllerServer
 from hil.isobus.tc.setpoints import SetpointRequest
 from hil.isobus.tecu import SpeedSource, TractorEcu, TractorState, add_tecu
 
-__all__ = ["TC_ADDRESS", "TC_NAME", "Tractor", "TractorSetup", "boom_from_ddop"]
+__all__ = ["TC_ADDRESS", "TC_NAME", "Tractor", "TractorSetup", "boom_from_ddop",
+           "default_server_options"]
 
 TC_FUNCTION = 130
 """ISO 11783-1 function code of a Task Controller (industry group 2, any device class)."""
@@ -182,7 +183,7 @@ class Tractor:
         self.network = IsobusNetwork(faults=faults, name="tractor")
         self.tecu: TractorEcu = add_tecu(self.network, self.truth)
         tc_cf = self.network.add(TC_NAME, TC_ADDRESS, "TC")
-        self.tc = TaskControllerServer(tc_cf, options=options or _default_options(),
+        self.tc = TaskControllerServer(tc_cf, options=options or default_server_options(),
                                        setpoints=self._setpoint, on_value=self._on_value)
         tc_cf.run(self.tc)
         tc_cf.run(self)
@@ -298,6 +299,21 @@ class Tractor:
                 implement.record.add(_Timed(now_s, pose), applying,
                                      [rate] * len(implement.boom.sections))
 
+    def implement_address(self) -> int | None:
+        """The address of the implement whose DDOP is active (the first, if several)."""
+        for address in self.tc.sessions:
+            if self._implement(address) is not None:
+                return address
+        return None
+
+    def reported_states(self, address: int) -> tuple[bool, ...] | None:
+        """The section states the implement at ``address`` last reported (DDI 161-176), one
+        per section of its DDOP, left to right; ``None``: no DDOP active, or none reported."""
+        implement = self._implement(address)
+        if implement is None or not implement.actual_states:
+            return None
+        return tuple(self._applying(implement))
+
     def _applying(self, implement: _Implement) -> list[bool]:
         n = len(implement.boom.sections)
         if not implement.actual_states:
@@ -340,7 +356,7 @@ class _Timed:
         return getattr(self.pose, name)
 
 
-def _default_options() -> ServerOptions:
+def default_server_options() -> ServerOptions:
     """A TC-BAS + TC-GEO + TC-SC server with one boom of up to 16 sections."""
     options = (pd.VersionOption.DOCUMENTATION
                | pd.VersionOption.TC_GEO_WITH_POSITION_BASED_CONTROL

@@ -223,10 +223,14 @@ class TransitionResult(DictMixin):
 
 def transition_distances(distance_m: ArrayLike, applying: ArrayLike, applied: ArrayLike,
                          prescribed: ArrayLike, *, band_pct: float = 5.0,
-                         min_step_pct: float = 5.0) -> TransitionResult:
+                         min_step_pct: float = 5.0,
+                         hold_m: float | None = None) -> TransitionResult:
     """Distance from each zone boundary until the applied rate stays within ``band_pct``.
 
-    The definition is in the module docstring.
+    The definition is in the module docstring. With ``hold_m``, the transition ends instead at
+    the first sample from which the rate stays in the band for ``hold_m`` of travel (or to
+    the end of the judged stretch, if shorter): what a noisy applied rate (a fluted roller's
+    pulsation) calls reaching the new rate; what it does afterwards the cell accuracy judges.
 
     Arrays are (k, s) (or (k,) for one section) as in :func:`cell_accuracy`. A boundary counts
     when the prescribed rate steps by more than ``min_step_pct`` of the larger of the two rates
@@ -254,6 +258,8 @@ def transition_distances(distance_m: ArrayLike, applying: ArrayLike, applied: Ar
             ok = np.abs(a[k:end, j] - new) <= band_pct / 100.0 * abs(new)
             if not ok.any():
                 dist = math.inf
+            elif hold_m is not None:
+                dist = _held_entry(d[k:end, j], ok, hold_m)
             else:
                 # judged up to the last sample in the band: leaving it just before the next
                 # boundary is the next transition starting early (a look-ahead), not this one
@@ -264,6 +270,21 @@ def transition_distances(distance_m: ArrayLike, applying: ArrayLike, applied: Ar
             out.append(Transition(j, float(d[k, j]), old, new, dist))
     worst = max((t.distance_m for t in out), default=math.nan)
     return TransitionResult(tuple(out), worst)
+
+
+def _held_entry(d: np.ndarray, ok: np.ndarray, hold_m: float) -> float:
+    """From ``d[0]``, the distance to the first in-band sample whose in-band run lasts
+    ``hold_m`` (or reaches the end of the stretch); ``inf`` if none does."""
+    run_start = None
+    for i, good in enumerate(ok):
+        if not good:
+            run_start = None
+            continue
+        if run_start is None:
+            run_start = i
+        if d[i] - d[run_start] >= hold_m or i == ok.size - 1:
+            return float(d[run_start] - d[0])
+    return math.inf
 
 
 # ---------------------------------------------------------------- sections ------------------

@@ -332,6 +332,21 @@ class AnalogOutputConfig:
 
 
 @dataclass(frozen=True)
+class BoomConfig:
+    """Where the rows put the fertilizer: the furrow openers (field runs under a Task
+    Controller judge the applied rate where it lands)."""
+
+    width_m: float
+    opener_offset_m: float
+
+    def __post_init__(self) -> None:
+        _positive(self, "width_m")
+        if not -20.0 <= self.opener_offset_m <= 20.0:
+            raise ValueError(f"opener_offset_m must be within +-20 m of the antenna, got "
+                             f"{self.opener_offset_m!r}")
+
+
+@dataclass(frozen=True)
 class WiringConfig:
     """Node ids, addresses, frame periods and database files of the rig's CAN bus."""
 
@@ -385,6 +400,7 @@ class FertilizerRigConfig:
     ground_speed: GroundSpeedConfig
     analog_output: AnalogOutputConfig
     wiring: WiringConfig
+    boom: BoomConfig
 
     def __post_init__(self) -> None:
         if len(self.wiring.flow_module_node_ids) != self.meter.rows:

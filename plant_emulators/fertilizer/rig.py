@@ -25,6 +25,7 @@ from plant_emulators.fertilizer.devices import (
     TerminalDevice,
     TractorSpeedDevice,
 )
+from plant_emulators.fertilizer.field_run import FIELD_FAULTS, BoomGeometry, FieldRun
 from plant_emulators.fertilizer.flow_sensor import REPORT_FAULTS, FlowSensor
 from plant_emulators.fertilizer.frames import FertilizerDatabase, bus_contract
 from plant_emulators.fertilizer.ground_speed import GroundSpeedModel
@@ -55,6 +56,8 @@ class FertilizerRig(Rig):
            for kind, what in REPORT_FAULTS.items()},
         "motor_stall": "the meter shaft jams",
         "controller_silent": "no frame of the controller reaches the rig (cut wire)",
+        **{name: f"field runs under a TC ([tractor] scenarios): {what}"
+           for name, what in FIELD_FAULTS.items()},
     }
     plot_groups: ClassVar[list[tuple[str, list[str]]]] = [
         ("flow, row 1 [g/s]", ["target_flow_row_gps", "sensed_flow_1_gps",
@@ -109,11 +112,20 @@ class FertilizerRig(Rig):
         self.flow_modules = [FlowModuleDevice(row + 1, sensor, self.codec, valid_max)
                              for row, sensor in enumerate(self.sensors)]
         self.terminal = TerminalDevice(self.codec, wiring.setpoint_period_ms / 1000.0, rows)
+        tractor = ctx.scenario.tractor if ctx.scenario is not None else None
+        #: a field run under a Task Controller: the rig is an ISOBUS tractor (field_run.py);
+        #: its TECU and TC replace the terminal's FertSetpoint and the speed frames
+        self.field_run = (FieldRun(tractor, BoomGeometry(cfg.boom.width_m, rows,
+                                                         cfg.boom.opener_offset_m))
+                          if tractor is not None else None)
+        tractor_side = ([self.field_run.device] if self.field_run is not None else
+                        [TractorSpeedDevice(self.speed, self.codec,
+                                            wiring.tractor_speed_period_ms / 1000.0),
+                         self.terminal])
         self.devices = [
             *self.flow_modules,
             GroundWheelDevice(self.speed, self.codec, wiring.ground_speed_period_ms / 1000.0),
-            TractorSpeedDevice(self.speed, self.codec, wiring.tractor_speed_period_ms / 1000.0),
-            self.terminal,
+            *tractor_side,
             self.analog,
             *(Heartbeat(f"flow module {i + 1}", node) for i, node in
               enumerate(wiring.flow_module_node_ids)),
@@ -138,12 +150,25 @@ class FertilizerRig(Rig):
               for name, unit_name, unit in (("flow_at_meter", "gps", "g/s"),
                                             ("flow_at_sensor", "gps", "g/s"),
                                             ("sensed_flow", "gps", "g/s"),
-                                            ("delivered", "g", "g"))))
+                                            ("delivered", "g", "g"))),
+            *((("east_m", "m"), ("north_m", "m"), ("heading_deg", "deg"),
+               ("prescribed_rate_kg_ha", "kg/ha"),
+               *((f"clutch_{row + 1}", "1") for row in range(rows)))
+              if self.field_run is not None else ()))
+        self._pose = self.field_run.pose(0.0) if self.field_run is not None else None
 
     # --- physics ---------------------------------------------------------------------------
     def target_flow_row_gps(self) -> float:
         """The flow per row the operator asked for, by the truth: field targets follow the
         true ground speed (eq. 1, Q = 0.1·M·D·v), bench targets are set directly."""
+        if self.field_run is not None:
+            # the map's rate under the openers over a row's strip at the path's speed, on the
+            # passes (0.1·M·(D/rows)·v); sections and coverage are the suite's to judge
+            pose = self._pose
+            if pose is None or pose.kind not in ("pass", "overlap"):
+                return 0.0
+            return (0.1 * self.field_run.prescribed_rate(pose)
+                    * self.field_run.geometry.row_width_m * pose.speed_m_s)
         if not self.terminal.enable:
             return 0.0
         if self.terminal.mode == MODE_FIELD:
@@ -152,6 +177,8 @@ class FertilizerRig(Rig):
         return self.terminal.target_flow_gps
 
     def advance(self, n: int, dt: float) -> None:
+        if self.field_run is not None:
+            self._follow_the_path()
         self.analog.update(self.time_s)
         self.plant.command_v = self.analog.output_volts()
         target = self.target_flow_row_gps()
@@ -166,6 +193,17 @@ class FertilizerRig(Rig):
         self._passed = passed
         self.target_mass_g += target * span
         self.time_s += span
+
+    def _follow_the_path(self) -> None:
+        """Field run: the tractor where the path says, the rows' clutches as the DUT last
+        reported its sections."""
+        run = self.field_run
+        assert run is not None
+        self._pose = run.pose(self.time_s)
+        self.speed.target_speed_mps = self._pose.speed_m_s
+        self.plant.engage_rows(run.update_clutches(self.time_s))
+        while run.notes:
+            self.ctx.note(*run.notes.pop(0))
 
     def physics_engines(self) -> dict[str, str]:
         return {"plant": self.plant.engine, "ground_speed": self.speed.engine,
@@ -214,6 +252,11 @@ class FertilizerRig(Rig):
             self.plant.stalled = active
         elif name == "controller_silent":
             self.controller_silent = active
+        elif name in FIELD_FAULTS:
+            if self.field_run is None:
+                raise ConfigError(f"{name} needs a field run under a Task Controller (a "
+                                  f"scenario with a [tractor] table)", key=name)
+            self.field_run.set_fault(name, active, time_s)
         else:
             raise ConfigError(f"unknown fault {name!r}", key=name)
 
@@ -259,7 +302,15 @@ class FertilizerRig(Rig):
                 sum(delivered), self.target_mass_g * self.rows,
                 *chain.from_iterable(zip(p.flow_at_meter_gps, p.flow_at_sensor_gps,
                                          [m.reported_flow_gps for m in self.flow_modules],
-                                         delivered, strict=True)))
+                                         delivered, strict=True)),
+                *(self._field_row() if self.field_run is not None else ()))
+
+    def _field_row(self) -> tuple[float, ...]:
+        pose = self._pose
+        run = self.field_run
+        assert pose is not None and run is not None
+        return (pose.east_m, pose.north_m, pose.heading_deg, run.prescribed_rate(pose),
+                *(1.0 if c else 0.0 for c in self.plant.row_engaged))
 
     def truth(self) -> dict[str, object]:
         p = self.plant
@@ -267,7 +318,9 @@ class FertilizerRig(Rig):
                 "delivered_total_g": sum(p.delivered_g),
                 "target_mass_per_row_g": self.target_mass_g,
                 "density_offset_frac": p.density_offset_frac,
-                "row_gain": list(p.row_gain)}
+                "row_gain": list(p.row_gain),
+                **({"field_run": self.field_run.truth()} if self.field_run is not None
+                   else {})}
 
     @classmethod
     def scenario_dir(cls) -> Path:

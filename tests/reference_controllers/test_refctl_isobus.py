@@ -245,7 +245,7 @@ def test_actual_rate_and_rows_reported_to_the_tc_are_what_it_meters(drive) -> No
 # --------------------------------------------------------------------- speed
 def test_it_uses_ground_based_speed_under_wheel_slip() -> None:
     slip = 0.2
-    tractor, node, _ = _run(DRIVE_AFTER_S + 6.0, slip=slip)
+    tractor, node, _ = _run(DRIVE_AFTER_S + 8.0, slip=slip)
     steps = [s for s in node.steps if s.metering and s.t > DRIVE_AFTER_S + 2.0]
     assert len(steps) > 25
     for s in steps:
@@ -277,7 +277,7 @@ def test_it_never_reads_the_wall_clock(monkeypatch: pytest.MonkeyPatch) -> None:
 def test_the_wheel_speed_variant_over_meters_by_the_slip() -> None:
     """The check above fails for a controller that reads PGN 65096 (the must-fail variant)."""
     slip = 0.2
-    tractor, node, _ = _run(DRIVE_AFTER_S + 6.0, slip=slip, speed="wheel")
+    tractor, node, _ = _run(DRIVE_AFTER_S + 8.0, slip=slip, speed="wheel")
     steps = [s for s in node.steps if s.metering and s.t > DRIVE_AFTER_S + 2.0]
     assert len(steps) > 25
     ratios = [s.target_gps / (0.1 * s.rate_kg_ha * 0.75 * tractor.pose(s.t).speed_m_s)

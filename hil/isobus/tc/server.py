@@ -235,6 +235,12 @@ class TaskControllerServer:
         self._down_until_s = now_s + down_s
         self._event(now_s, None, EventKind.SERVER_RESTARTED, f"down for {down_s:g} s")
 
+    def come_back(self, now_s: float) -> None:
+        """End a restart's down time at ``now_s`` (a reboot of unknown length, ended by the
+        rig): the TC sends its status again from its next tick."""
+        if self._down_until_s is not None and now_s < self._down_until_s:
+            self._down_until_s = now_s
+
     def set_task_active(self, active: bool) -> None:
         """Start or stop the task: the status's task totals active bit, sent at the next tick
         (at most every 0.2 s), then every 2 s again from there."""
@@ -377,6 +383,10 @@ class TaskControllerServer:
                 if enough:
                     session.announced_size = message.size
                     session.transfer.clear()
+                else:
+                    self._event(t, session.address, EventKind.REFUSED,
+                                f"not enough memory: a pool of {message.size} bytes, room for "
+                                f"{self.options.memory_bytes}")
                 self._send(pd.RequestObjectPoolTransferResponse(enough), session.address)
             case pd.ObjectPoolTransfer():
                 if len(session.transfer) + len(message.pool) > self.options.memory_bytes:

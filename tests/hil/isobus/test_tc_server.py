@@ -372,13 +372,15 @@ def test_activate_without_a_pool_is_refused() -> None:
 
 def test_too_large_a_pool_is_refused_before_the_transfer() -> None:
     port = FakePort()
-    _server(port, options=ServerOptions(memory_bytes=100))
+    server = _server(port, options=ServerOptions(memory_bytes=100))
     client = Client(port)
     client.working_set_master(0.0)
     assert client.send(pd.RequestObjectPoolTransfer(1000), 0.1) == [
         pd.RequestObjectPoolTransferResponse(False)]
     assert client.send(pd.ObjectPoolTransfer(b"x" * 101), 0.2) == [
         pd.ObjectPoolTransferResponse(0x01, 101)]
+    refused = [e for e in server.events if e.kind == EventKind.REFUSED]
+    assert [e.detail for e in refused] == ["not enough memory: a pool of 1000 bytes, room for 100"]
 
 
 # --- stored pools: labels, skipped transfers, one label with another pool ---

@@ -209,3 +209,18 @@ def test_sections_that_never_switch_on_skip() -> None:
 
 def test_docstring_example() -> None:
     assert doctest.testmod(application_map).failed == 0
+
+
+def test_a_held_transition_ends_where_the_rate_enters_the_band_for_good_enough() -> None:
+    d = np.arange(0.0, 30.0, 0.5)
+    p = np.where(d < 10.0, 100.0, 200.0)
+    a = p.copy()
+    a[(d >= 10.0) & (d < 13.0)] = 150.0           # 3 m to reach the new rate
+    a[(d >= 20.0) & (d < 20.5)] = 180.0           # one noisy sample later on
+    on = np.ones_like(d, dtype=bool)
+    strict = transition_distances(d, on, a, p)
+    held = transition_distances(d, on, a, p, hold_m=2.0)
+    assert strict.worst_m == pytest.approx(10.5)   # stays in the band only after the blip
+    assert held.worst_m == pytest.approx(3.0)
+    never = transition_distances(d, on, np.where(d < 10.0, 100.0, 150.0), p, hold_m=2.0)
+    assert never.worst_m == math.inf

@@ -1,0 +1,170 @@
+"""The fertilizer rig as an ISOBUS tractor: a field run under a Task Controller (issue 27).
+
+When a scenario has a ``[tractor]`` table (:class:`hil.rig.scenario.TractorRun`), the rig's
+terminal (FertSetpoint) and speed frames give way to an emulated tractor
+(:class:`hil.isobus.tractor.Tractor`): its tractor ECU reports the path's speed (PGN 65096 /
+65097 / 61474) and its Task Controller sends the DUT, an ISOBUS implement, the prescription
+map's rate and the section states of TC-SC. :class:`FieldRun` is that tractor plus what the rig
+needs around it:
+
+- **motion**: the path is the truth of motion. The tractor is where the path says at run time
+  ``t`` and moves at the path's speed; the rig's ground-speed model follows that speed (for
+  the planter's own Hall wheel, 0x185);
+- **row clutches**: the rig has no clutch actuator on the bus, so the section states the DUT
+  reports (DDI 161, actual condensed work state) drive the meter's row clutches, as the
+  implement's clutch outputs would; until it reports any, the clutches stay engaged (the
+  state of an unpowered clutch on the rig: what a controller that never switches leaves);
+- **geometry**: the furrow openers of the rig's meter (``[boom]`` of its config: width, rows,
+  fore-aft offset from the GNSS antenna), where the delivered fertilizer lands; the truth the
+  ``isobus`` suite judges against the map;
+- **faults**: ``tc_down`` (the TC restarts and stays silent and deaf until cleared) and
+  ``tecu_silent`` (the TECU's speed messages stop).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+from hil.errors import ConfigError
+from hil.isobus.field import Boom, Field, Pose, PrescriptionMap, load_field, load_prescription
+from hil.isobus.tractor import Tractor, TractorSetup, default_server_options
+from hil.rig.device import Device
+from hil.rig.scenario import TractorRun
+
+__all__ = ["FIELD_FAULTS", "BoomGeometry", "FieldRun"]
+
+#: faults of a field run under the TC: name -> what it does
+FIELD_FAULTS = {
+    "tc_down": "the Task Controller restarts and stays silent and deaf until cleared",
+    "tecu_silent": "the tractor ECU's speed messages (PGN 65096/65097/61474) stop",
+}
+
+
+@dataclass(frozen=True)
+class BoomGeometry:
+    """Where the rig's meter rows put the fertilizer: one furrow opener per row, left to right.
+
+    Attributes
+    ----------
+    width_m : float
+        Working width of the rows together.
+    rows : int
+        Meter rows, one opener each, ``width_m / rows`` apart.
+    opener_offset_m : float
+        Fore-aft offset of the openers from the GNSS antenna (negative: behind).
+    """
+
+    width_m: float
+    rows: int
+    opener_offset_m: float
+
+    @property
+    def row_width_m(self) -> float:
+        """The strip of ground one row covers."""
+        return self.width_m / self.rows
+
+    def boom(self) -> Boom:
+        """The openers as a :class:`~hil.isobus.field.boom.Boom` (no look-ahead: the truth)."""
+        return Boom.uniform(self.rows, self.width_m, fore_aft_m=self.opener_offset_m)
+
+    def as_dict(self) -> dict[str, float | int]:
+        """For the run record (the suite reads it back)."""
+        return {"width_m": self.width_m, "rows": self.rows,
+                "opener_offset_m": self.opener_offset_m}
+
+
+class FieldRun:
+    """The emulated tractor of one field run, and the row clutches it drives.
+
+    Parameters
+    ----------
+    run : TractorRun
+        The scenario's ``[tractor]`` table (file names absolute).
+    geometry : BoomGeometry
+        The rig's openers.
+
+    Raises
+    ------
+    ConfigError
+        The field or the map cannot be read (naming the file and the key).
+    """
+
+    def __init__(self, run: TractorRun, geometry: BoomGeometry) -> None:
+        self.run = run
+        self.geometry = geometry
+        self.field: Field = load_field(run.field)
+        self.prescription: PrescriptionMap | None = (
+            load_prescription(run.prescription, frame=self.field.frame)
+            if run.prescription else None)
+        options = replace(default_server_options(), memory_bytes=run.tc_memory_bytes)
+        self.tractor = Tractor(TractorSetup(self.field, self.prescription,
+                                            drive_after_s=run.drive_after_s,
+                                            wheel_slip=run.wheel_slip), options=options)
+        self.device: Device = self.tractor.network
+        self._openers = geometry.boom()
+        #: row clutches (row 1 first), as the DUT last reported its sections
+        self.clutches: tuple[bool, ...] = (True,) * geometry.rows
+        #: notes for the record: (time, kind, detail)
+        self.notes: list[tuple[float, str, str]] = []
+        self._mismatch_noted = False
+
+    # --- motion ---------------------------------------------------------------------------
+    def pose(self, time_s: float) -> Pose:
+        """The antenna at run time ``time_s``."""
+        return self.tractor.pose(time_s)
+
+    def prescribed_rate(self, pose: Pose) -> float:
+        """The map's rate (kg/ha) under the middle of the openers at ``pose``; 0 without a map."""
+        if self.prescription is None:
+            return 0.0
+        centre = self._openers.section_lines(pose.east_m, pose.north_m, pose.heading_deg)[1][0]
+        return float(self.prescription.rate_at_local(centre[:, 0], centre[:, 1]).mean())
+
+    # --- clutches -------------------------------------------------------------------------
+    def update_clutches(self, time_s: float) -> tuple[bool, ...]:
+        """The clutches from the DUT's last reported section states (kept when none)."""
+        address = self.tractor.implement_address()
+        if address is None:
+            return self.clutches
+        states = self.tractor.reported_states(address)
+        if states is None:
+            return self.clutches
+        if len(states) != self.geometry.rows:
+            if not self._mismatch_noted:
+                self._mismatch_noted = True
+                self.notes.append((time_s, "isobus-sections",
+                                   f"the DUT's DDOP has {len(states)} sections, the meter "
+                                   f"{self.geometry.rows} rows: the clutches stay as they are"))
+            return self.clutches
+        self.clutches = states
+        return states
+
+    # --- faults ---------------------------------------------------------------------------
+    def set_fault(self, name: str, active: bool, time_s: float) -> None:
+        """Inject or clear a :data:`FIELD_FAULTS` fault."""
+        if name == "tc_down":
+            if active:
+                self.tractor.tc.restart(time_s, down_s=math.inf)
+            else:
+                self.tractor.tc.come_back(time_s)
+        elif name == "tecu_silent":
+            self.tractor.tecu.silent = active
+        else:
+            raise ConfigError(f"unknown fault {name!r}", key=name)
+
+    # --- record ---------------------------------------------------------------------------
+    def truth(self) -> dict[str, object]:
+        """What the suite needs besides the traces: geometry, files, the TC's events."""
+        tc = self.tractor.tc
+        return {
+            "boom": self.geometry.as_dict(),
+            "field": self.run.field,
+            "prescription": self.run.prescription,
+            "drive_after_s": self.run.drive_after_s,
+            "wheel_slip": self.run.wheel_slip,
+            "tc_events": [{"t": round(e.time_s, 6), "kind": e.kind.value,
+                           "address": e.address, "detail": e.detail} for e in tc.events],
+            "implements": {f"0x{a:02X}": f"0x{n:016X}"
+                           for a, n in self.tractor.network.external().items()},
+        }

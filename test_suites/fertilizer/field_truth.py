@@ -1,0 +1,211 @@
+"""What a field run under the Task Controller really applied, where: the truth the ``isobus``
+suite judges against the prescription map (:mod:`hil.metrics.application_map`).
+
+The rig records, 100 times a second, the antenna's pose (``east_m``, ``north_m``,
+``heading_deg``) and each row's delivered mass (``delivered_<row>_g``: what has left the tube at
+the furrow opener); its truth names the openers' geometry (``field_run.boom``), the field and
+the map. Resampled to :data:`SAMPLE_S`, each row is a section of the metrics:
+
+- where its opener is (the pose and the geometry, :meth:`hil.isobus.field.Boom.section_lines`)
+  and how far it has travelled;
+- what it applied from one sample to the next: the mass delivered meanwhile over the strip it
+  crossed (``10 x g / m²`` = kg/ha), and whether it applied at all (:data:`APPLYING_SHARE` of
+  the map's smallest non-zero rate);
+- what the map prescribes under the opener, which zone that is, whether the ground needed
+  applying (inside the work area and not covered by an earlier leg: ``needed_ground``).
+
+Nothing here reads what the DUT or the TC said: only the mass that landed and where.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+import shapely
+
+from hil.isobus.field import Boom, Field, PrescriptionMap, load_field, load_prescription
+from hil.isobus.field.coverage import needed_ground
+from hil.rig import RunResult
+
+#: the sample period of the judged arrays: 1/10 of the control period would be finer than the
+#: openers' own spread; at 6 km/h a sample is 17 cm of travel
+SAMPLE_S = 0.1
+#: a row applies when it lays at least this share of the map's smallest non-zero rate: a row
+#: switched off lays nothing (its clutch stops the roller), one switched on lays its target
+#: with the flutes' +-15 % pulsation, so half the smallest rate splits them cleanly
+APPLYING_SHARE = 0.5
+#: the applied rate smoothed over this much time for judging transitions (the suites' flow
+#: window: the flute pulsation at 2.4-3.6 Hz keeps ~13 % of its amplitude over 1 s)
+SMOOTH_S = 1.0
+#: the map is judged at steady speed: the tractor's speed has not changed by more than
+#: STEADY_TOL over the last STEADY_S. While it changes, what lands lags the speed by the tube's
+#: transport (0.43 s) whatever the controller does (at the headland's -0.36 m/s² that is ~12 %
+#: of the rate); speed transients are flow.field.transient_lag's to judge
+STEADY_S = 2.0
+STEADY_TOL = 0.01
+#: where the ground that needs applying changes for less than this along a row's track (a
+#: sliver between two passes' edges), no section control would switch: the sliver is ignored
+MIN_SWITCH_M = 1.0
+
+
+@dataclass(frozen=True)
+class FieldArrays:
+    """The (k, s) arrays of :mod:`hil.metrics.application_map` for one run (see the module)."""
+
+    t_s: np.ndarray
+    distance_m: np.ndarray
+    width_m: np.ndarray
+    mass_g: np.ndarray
+    applied: np.ndarray
+    applied_smooth: np.ndarray
+    applying: np.ndarray
+    prescribed: np.ndarray
+    cell: np.ndarray
+    needed: np.ndarray
+    inside_work_area: np.ndarray
+    steady: np.ndarray
+    """(k,) the tractor's speed steady (see :data:`STEADY_S`) and not zero."""
+    boom_distance_m: np.ndarray
+    """(k, 1) distance the middle of the openers has travelled."""
+    boom_prescribed: np.ndarray
+    """(k, 1) the map's rate under the middle of the openers."""
+    boom_applied_smooth: np.ndarray
+    """(k, 1) what the applying rows laid together, over their strips, smoothed (kg/ha)."""
+    boom_applying: np.ndarray
+    """(k, 1) some row applied."""
+
+
+class FieldTruth:
+    """The truth of one field run (see the module docstring).
+
+    Raises
+    ------
+    KeyError
+        The run was not a field run under the TC (no ``field_run`` in its truth).
+    """
+
+    def __init__(self, result: RunResult) -> None:
+        truth = result.record["truth"]
+        if "field_run" not in truth:
+            raise KeyError(f"{result.out_dir}: not a field run under a Task Controller (its "
+                           f"scenario has no [tractor] table)")
+        self.result = result
+        self.run: dict[str, Any] = truth["field_run"]
+        geometry = self.run["boom"]
+        self.rows = int(geometry["rows"])
+        self.boom = Boom.uniform(self.rows, float(geometry["width_m"]),
+                                 fore_aft_m=float(geometry["opener_offset_m"]))
+        self.field: Field = load_field(self.run["field"])
+        self.prescription: PrescriptionMap | None = (
+            load_prescription(self.run["prescription"], frame=self.field.frame)
+            if self.run["prescription"] else None)
+        self.drive_after_s = float(self.run["drive_after_s"])
+
+    # --- the TC's events ------------------------------------------------------------------
+    def events(self, kind: str) -> list[float]:
+        """Times of the TC's events of ``kind`` (``activated``, ``refused`` …) for any client."""
+        return [float(e["t"]) for e in self.run["tc_events"] if e["kind"] == kind]
+
+    # --- the arrays -----------------------------------------------------------------------
+    @cached_property
+    def arrays(self) -> FieldArrays:
+        """Every trace sample at :data:`SAMPLE_S`, from the start to the end of the run."""
+        traces, _ = self.result.traces()
+        t_all = traces["time_s"]
+        dt = float(np.median(np.diff(t_all)))
+        step = max(1, round(SAMPLE_S / dt))
+        pick = np.arange(0, t_all.size, step)
+        t = t_all[pick]
+        east, north = traces["east_m"][pick], traces["north_m"][pick]
+        heading = traces["heading_deg"][pick]
+        _, centre, _ = self.boom.section_lines(east, north, heading)
+        steps = np.linalg.norm(np.diff(centre, axis=0), axis=-1)            # (k-1, s)
+        distance = np.vstack([np.zeros((1, self.rows)), np.cumsum(steps, axis=0)])
+        delivered = np.column_stack([traces[f"delivered_{r + 1}_g"][pick]
+                                     for r in range(self.rows)])
+        # interval k -> k+1 (the last sample lays nothing: the run ends there)
+        mass = np.vstack([np.diff(delivered, axis=0), np.zeros((1, self.rows))])
+        length = np.vstack([steps, np.zeros((1, self.rows))])
+        width = np.array([s.width_m for s in self.boom.sections])
+        area = length * width[None, :]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            applied = np.where(area > 0, 10.0 * mass / area, 0.0)
+        window = max(1, round(SMOOTH_S / SAMPLE_S))
+        smooth = _smoothed_rate(mass, area, window)
+        middle = centre.mean(axis=1)                                        # (k, 2)
+        boom_steps = np.linalg.norm(np.diff(middle, axis=0), axis=-1)
+        boom_distance = np.concatenate([[0.0], np.cumsum(boom_steps)])[:, None]
+        if self.prescription is not None:
+            prescribed = self.prescription.rate_at_local(centre[..., 0], centre[..., 1])
+            cell = self.prescription.zone_index_local(centre[..., 0], centre[..., 1])
+            rates = [z.rate for z in self.prescription.zones if z.rate > 0]
+            floor = min(rates, default=0.0)
+        else:
+            prescribed = np.zeros((t.size, self.rows))
+            cell = np.full((t.size, self.rows), -1)
+            floor = 0.0
+        threshold = APPLYING_SHARE * floor if floor > 0 else 1.0
+        applying = (area > 0) & (applied >= threshold)
+        boom_mass = np.where(applying, mass, 0.0).sum(axis=1, keepdims=True)
+        boom_area = np.where(applying, area, 0.0).sum(axis=1, keepdims=True)
+        boom_smooth = _smoothed_rate(boom_mass, boom_area, window)
+        boom_prescribed = (self.prescription.rate_at_local(middle[:, 0], middle[:, 1])[:, None]
+                           if self.prescription is not None else np.zeros((t.size, 1)))
+        path_t = np.clip(t - self.drive_after_s, 0.0, None)
+        samples = self.field.path.sample(path_t)
+        needed = needed_ground(self.boom, east, north, heading, samples.leg, applying,
+                               self.field.work_area)
+        # standing at the start (before the drive), nothing is needed: the field starts
+        # when the tractor moves
+        needed[t < self.drive_after_s] = False
+        needed = _without_slivers(needed, distance, MIN_SWITCH_M)
+        inside = shapely.contains_xy(self.field.work_area, centre[..., 0], centre[..., 1])
+        return FieldArrays(t, distance, width, mass, applied, smooth, applying,
+                           np.asarray(prescribed, dtype=float), np.asarray(cell), needed,
+                           np.asarray(inside, dtype=bool),
+                           _steady(samples.speed_m_s, max(1, round(STEADY_S / SAMPLE_S))),
+                           boom_distance, np.asarray(boom_prescribed, dtype=float),
+                           boom_smooth, applying.any(axis=1, keepdims=True))
+
+    def window(self, t0: float, t1: float) -> np.ndarray:
+        """(k,) True for the samples in ``[t0, t1)``."""
+        t = self.arrays.t_s
+        return (t >= t0) & (t < t1)
+
+
+def _steady(speed: np.ndarray, n: int) -> np.ndarray:
+    """(k,) True where the speed is > 0 and within STEADY_TOL of itself over the last n."""
+    out = speed > 0
+    for lag in range(1, n + 1):
+        before = np.concatenate([np.full(lag, np.nan), speed[:-lag]])
+        with np.errstate(invalid="ignore"):
+            out &= np.abs(before - speed) <= STEADY_TOL * speed
+    return out
+
+
+def _without_slivers(needed: np.ndarray, distance: np.ndarray, min_m: float) -> np.ndarray:
+    """``needed`` with every interior run shorter than ``min_m`` along the track flipped."""
+    out = needed.copy()
+    for j in range(out.shape[1]):
+        col, d = out[:, j], distance[:, j]
+        edges = np.flatnonzero(col[1:] != col[:-1]) + 1
+        bounds = [0, *edges.tolist(), col.size]
+        for a, b in zip(bounds[1:-2], bounds[2:-1], strict=True):
+            if d[b] - d[a] < min_m:
+                col[a:b] = not col[a]
+    return out
+
+
+def _smoothed_rate(mass: np.ndarray, area: np.ndarray, n: int) -> np.ndarray:
+    """kg/ha over a centred window of ``n`` samples: the window's mass over its area."""
+    kernel = np.ones(n)
+    out = np.zeros_like(mass)
+    for j in range(mass.shape[1]):
+        m = np.convolve(mass[:, j], kernel, mode="same")
+        a = np.convolve(area[:, j], kernel, mode="same")
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out[:, j] = np.where(a > 0, 10.0 * m / a, 0.0)
+    return out
