@@ -273,8 +273,10 @@ def transition_distances(distance_m: ArrayLike, applying: ArrayLike, applied: Ar
 
 
 def _held_entry(d: np.ndarray, ok: np.ndarray, hold_m: float) -> float:
-    """From ``d[0]``, the distance to the first in-band sample whose in-band run lasts
-    ``hold_m`` (or reaches the end of the stretch); ``inf`` if none does."""
+    """The distance from ``d[0]`` to the first in-band sample that stays in the band.
+
+    Staying means for ``hold_m`` of travel, or to the end of the stretch; ``inf`` if none does.
+    """
     run_start = None
     for i, good in enumerate(ok):
         if not good:

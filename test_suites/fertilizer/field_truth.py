@@ -19,6 +19,7 @@ Nothing here reads what the DUT or the TC said: only the mass that landed and wh
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any
@@ -193,7 +194,7 @@ def _without_slivers(needed: np.ndarray, distance: np.ndarray, min_m: float) -> 
         col, d = out[:, j], distance[:, j]
         edges = np.flatnonzero(col[1:] != col[:-1]) + 1
         bounds = [0, *edges.tolist(), col.size]
-        for a, b in zip(bounds[1:-2], bounds[2:-1], strict=True):
+        for a, b in itertools.pairwise(bounds[1:-1]):
             if d[b] - d[a] < min_m:
                 col[a:b] = not col[a]
     return out
