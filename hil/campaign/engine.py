@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from hil.campaign.decision import Decision, decide, sprt_of
 from hil.campaign.dispersion import Dispersion
 from hil.campaign.record import SAMPLES_NAME, SCHEMA, clean, write_record
 from hil.campaign.sample import SampleTask, run_sample
@@ -54,6 +55,9 @@ class CampaignPlan:
     worst: int = 1
     max_reruns: int = 10
     isolation: str = "process"
+    #: when to stop (hil.campaign.decision): "fixed" (all N), "curtailed" (as soon as the
+    #: N-sample verdict is settled) or "sequential" (Wald's SPRT)
+    rule: str = "fixed"
     campaign_id: str = field(default_factory=lambda: uuid.uuid4().hex[:12])
 
     def task(self, index: int, *, record: str = "measurements", out_dir: str = ""
@@ -120,9 +124,10 @@ def error_sample(task: SampleTask, reason: str) -> dict[str, Any]:
             "worker": None, "wall_s": None}
 
 
-def map_samples(client: Any, tasks: list[SampleTask], on_sample: Callable[[dict[str, Any]], None],
-                *, prefix: str) -> None:
-    """Run ``tasks`` on ``client``; call ``on_sample`` with each sample as it finishes."""
+def map_samples(client: Any, tasks: list[SampleTask],
+                on_sample: Callable[[dict[str, Any]], bool | None], *, prefix: str) -> None:
+    """Run ``tasks`` on ``client``; call ``on_sample`` with each sample as it finishes, and
+    stop (cancelling the samples not finished) when it returns True."""
     from dask.distributed import as_completed
 
     futures = {client.submit(run_sample, t, key=f"{prefix}-{t.index}", pure=False): t
@@ -140,7 +145,8 @@ def map_samples(client: Any, tasks: list[SampleTask], on_sample: Callable[[dict[
                     reason = f"worker failed: {type(other).__name__}: {other}"
                 sample = error_sample(task, reason[:800])
             future.release()
-            on_sample(sample)
+            if on_sample(sample):
+                break
     finally:
         pending = [f for f in futures if not f.done()]
         if pending:
@@ -163,9 +169,12 @@ class Campaign:
         #: samples.jsonl, opened with the first sample: a campaign that never began writes
         #: nothing
         self._jsonl: Any = None
+        #: the stopping rule's verdict once it decided before the N samples (None: not yet)
+        self.decision: Decision | None = None
 
-    def add(self, sample: dict[str, Any]) -> None:
-        """Keep ``sample``: appended to samples.jsonl at once, campaign.json now and then."""
+    def add(self, sample: dict[str, Any]) -> bool:
+        """Keep ``sample``: appended to samples.jsonl at once, campaign.json now and then.
+        True when the stopping rule has decided (the campaign may stop)."""
         sample = clean(sample)
         self.samples.append(sample)
         if self._jsonl is None:
@@ -173,18 +182,66 @@ class Campaign:
             self._jsonl = (self.out / SAMPLES_NAME).open("w", encoding="utf-8")
         self._jsonl.write(json.dumps(sample) + "\n")
         self._jsonl.flush()
+        decision = decide(self.plan.rule, self.samples, self.plan.samples,
+                          self.requirement_dict())
+        # a settled pass or fail ends the campaign; a settled inconclusive does not: its
+        # samples still show the distributions (and how far the requirement is)
+        if decision.verdict in ("pass", "fail") and len(self.samples) < self.plan.samples:
+            self.decision = decision
         if time.perf_counter() - self._written > _REWRITE_S:
             self.write()
+        return self.decision is not None
 
     def requirement(self) -> tuple[float | None, float]:
         req = self.plan.profile.campaign
         return (req.pass_probability, req.confidence) if req else (None, 0.95)
+
+    def requirement_dict(self) -> dict[str, Any] | None:
+        """The profile's ``[campaign]`` as the record keeps it (None: no requirement)."""
+        req = self.plan.profile.campaign
+        if req is None:
+            return None
+        out: dict[str, Any] = {"pass_probability": req.pass_probability,
+                               "confidence": req.confidence}
+        if req.sequential_good_probability is not None:
+            out["sequential_good_probability"] = req.sequential_good_probability
+        if req.sequential_alpha is not None:
+            out["sequential_alpha"] = req.sequential_alpha
+        return out
+
+    def decision_dict(self) -> dict[str, Any]:
+        """``decision``: the stopping rule, samples used and saved, and (when it decided) its
+        verdict and why."""
+        plan = self.plan
+        done = len(self.samples)
+        decision = self.decision
+        if decision is None and plan.rule != "fixed" and self.status == "complete":
+            decision = decide(plan.rule, self.samples, plan.samples, self.requirement_dict())
+        out: dict[str, Any] = {
+            "rule": plan.rule, "samples_requested": plan.samples, "samples_run": done,
+            "samples_used": decision.used if decision and decision.verdict else done,
+            "samples_saved": plan.samples - done if self.status == "complete" else 0,
+            "early": self.decision is not None,
+            "verdict": decision.verdict if decision else None,
+            "reason": decision.reason if decision and decision.verdict else None}
+        if plan.rule == "sequential":
+            out["sprt"] = sprt_of(self.requirement_dict() or {}).to_dict()
+        return out
 
     def document(self) -> dict[str, Any]:
         p, confidence = self.requirement()
         samples = sorted(self.samples, key=lambda s: s["index"])
         summary, measurements = summarize(samples, pass_probability=p, confidence=confidence,
                                           worst=max(3, self.plan.worst))
+        decision = self.decision_dict()
+        if decision["verdict"] is not None and self.status == "complete" \
+                and (decision["early"] or self.plan.rule == "sequential"):
+            # the rule's verdict: curtailment's is the N-sample verdict (the exact bounds of
+            # the samples run agree with it), the SPRT's its own
+            summary["verdict"], summary["reason"] = decision["verdict"], decision["reason"]
+            if decision["early"]:
+                summary["reason"] += (f" (decided after {decision['samples_run']} of "
+                                      f"{self.plan.samples} samples)")
         if self.status == "interrupted":
             summary["reason"] += (f" (interrupted after {len(samples)} of "
                                   f"{self.plan.samples} samples)")
@@ -201,8 +258,8 @@ class Campaign:
             "bus": plan.bus, "clock": plan.clock, "suites": plan.suites,
             "keyword": plan.keyword, "seed": plan.seed, "samples_requested": plan.samples,
             "dispersion": plan.dispersion.to_dict() if plan.dispersion else None,
-            "requirement": ({"pass_probability": p, "confidence": confidence}
-                            if p is not None else None),
+            "requirement": self.requirement_dict(),
+            "decision": decision,
             "engine": self.engine,
             "summary": summary,
             "measurements": measurements,

@@ -7,9 +7,11 @@
 Sample i runs the chosen suites at seed S+i with the rig parameters of the dispersion file
 drawn for that seed (default: the rig's shipped ``dispersion.toml``; ``--dispersion none``:
 nominal parameters, seeds only). Writes ``campaign.json``, ``samples.jsonl``, ``report.html``
-and, under ``samples/NNNN/``, full qualifications of the failing and worst samples. Exit 0 when
-the campaign passes, 1 when it fails or is inconclusive, 2 on setup errors or when no sample
-completed.
+and, under ``samples/NNNN/``, full qualifications of the failing and worst samples. With a
+``[campaign]`` requirement in the profile the campaign stops as soon as its N-sample verdict
+cannot change (``--no-early-stop``: run all N); ``--sequential`` runs Wald's SPRT the profile
+states instead (:mod:`hil.campaign.decision`). Exit 0 when the campaign passes, 1 when it
+fails, 3 when it is inconclusive, 2 on setup errors or when no sample completed.
 """
 
 from __future__ import annotations
@@ -33,7 +35,9 @@ from hil.errors import ConfigError
 from hil.record.staging import Staging, signals_held
 from hil.validation import help_with_range, option_type
 
-EXIT_BY_VERDICT = {"pass": 0, "fail": 1, "inconclusive": 1, "error": 2}
+#: exit status by verdict; inconclusive (the samples neither demonstrate the requirement nor
+#: rule it out) has its own, as in ``hil gate``
+EXIT_BY_VERDICT = {"pass": 0, "fail": 1, "inconclusive": 3, "error": 2}
 #: what a campaign writes into --out (moved in from its staging directory, the record last;
 #: the names of hil.campaign.record, not imported here: that would import scipy for every
 #: ``hil`` command)
@@ -99,6 +103,17 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
                         "server (which daemonic Dask workers may not start); inprocess: "
                         "pytest in the worker itself, but a hung sample cannot be killed "
                         "(reruns always use a new interpreter)")
+    stop = p.add_mutually_exclusive_group()
+    stop.add_argument("--sequential", action="store_true",
+                      help="Wald's sequential probability ratio test between the profile's "
+                           "[campaign] pass_probability and sequential_good_probability "
+                           "(risks: 1 - confidence of passing the first, sequential_alpha of "
+                           "failing the second), samples judged in index order; stops at a "
+                           "boundary, inconclusive at --samples")
+    stop.add_argument("--no-early-stop", action="store_true",
+                      help="run all --samples even when the verdict is settled (default with "
+                           "a [campaign] requirement: stop as soon as the remaining samples "
+                           "cannot change the verdict)")
     p.add_argument("--no-progress", action="store_true", help="no progress display")
     p.set_defaults(func=_campaign)
 
@@ -143,7 +158,29 @@ def check_campaign_options(args: argparse.Namespace) -> tuple[Any, Any]:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise ConfigError(f"{out} exists and is not a directory", key="--out")
+    stopping_rule(args, profile)
     return profile, dispersion
+
+
+def stopping_rule(args: argparse.Namespace, profile: Any) -> str:
+    """The campaign's stopping rule (:mod:`hil.campaign.decision`): ``sequential`` with
+    ``--sequential`` (the profile must state the SPRT), ``fixed`` without a requirement or with
+    ``--no-early-stop``, else ``curtailed``."""
+    req = profile.campaign
+    if getattr(args, "sequential", False):
+        if req is None:
+            raise ConfigError("--sequential needs a [campaign] table stating pass_probability, "
+                              "confidence, sequential_good_probability and sequential_alpha",
+                              path=str(profile.path), key="campaign")
+        for key in ("sequential_good_probability", "sequential_alpha"):
+            if getattr(req, key) is None:
+                raise ConfigError(f"--sequential needs [campaign] {key} (see "
+                                  f"docs/guide/campaigns.md, 'Early decisions')",
+                                  path=str(profile.path), key=f"campaign.{key}")
+        return "sequential"
+    if req is None or getattr(args, "no_early_stop", False):
+        return "fixed"
+    return "curtailed"
 
 
 def _campaign(args: argparse.Namespace) -> int:
@@ -160,7 +197,8 @@ def _campaign(args: argparse.Namespace) -> int:
     plan = CampaignPlan(profile=profile, samples=args.samples, seed=args.seed, bus=args.bus,
                         clock=args.clock, suites=args.suite, dispersion=dispersion,
                         timeout_s=args.timeout_s, keyword=args.keyword, worst=args.worst,
-                        max_reruns=max_reruns, isolation=args.isolation)
+                        max_reruns=max_reruns, isolation=args.isolation,
+                        rule=stopping_rule(args, profile))
     check_selection(plan.task(0))            # -k and --suite select at least one test
     build_dir = None
     if args.scheduler is None and args.bus != "inline" and profile.build is not None:
@@ -182,8 +220,9 @@ def _campaign(args: argparse.Namespace) -> int:
     print(f"hil: {label}: {args.samples} samples from seed {args.seed} ({args.bus}, "
           f"{args.clock}, suites {args.suite}; dispersion "
           f"{dispersion.path if dispersion else 'none'}; "
-          f"{where})",
+          f"{where}; {_rule_text(plan)})",
           file=sys.stderr)
+    _say_reach(plan)
     # nothing in --out changes until the cluster is there: a campaign that cannot start
     # leaves the previous one as it was
     with dask_client(workers=args.workers, scheduler=args.scheduler,
@@ -197,15 +236,20 @@ def _campaign(args: argparse.Namespace) -> int:
             with staging.writing():
                 progress = Progress(args.samples, label, enabled=not args.no_progress)
 
-                def on_sample(sample: dict[str, Any]) -> None:
-                    campaign.add(sample)
+                def on_sample(sample: dict[str, Any]) -> bool:
+                    decided = campaign.add(sample)
                     progress.update(sample)
                     phase("campaign:sample")
+                    return decided
                 try:
                     map_samples(client, [plan.task(i) for i in range(args.samples)],
                                 on_sample, prefix=f"agrihil-{plan.campaign_id}-sample")
                 finally:
                     progress.close()
+                if campaign.decision is not None:
+                    _say_decided(campaign)
+                    if args.max_reruns is None:   # reruns in proportion to what ran
+                        plan.max_reruns = default_max_reruns(len(campaign.samples))
                 campaign.write()
                 phase("campaign:written")
                 _rerun(campaign, client, staging.path)
@@ -224,6 +268,35 @@ def _campaign(args: argparse.Namespace) -> int:
                     phase("campaign:promote")
                     staging.promote()
     return _report(campaign.document(), out)
+
+
+def _rule_text(plan: Any) -> str:
+    return {"fixed": "every sample run",
+            "curtailed": "stops when the verdict is settled",
+            "sequential": "Wald's SPRT"}[plan.rule]
+
+
+def _say_reach(plan: Any) -> None:
+    """Say up front when --samples is too few to demonstrate the requirement at all."""
+    from hil.campaign.stats import samples_needed
+
+    req = plan.profile.campaign
+    if req is None or plan.rule == "sequential":
+        return
+    need = samples_needed(req.pass_probability, req.confidence)
+    if plan.samples < need:
+        print(f"hil: {plan.samples} samples cannot demonstrate {req.pass_probability:g} at "
+              f"{req.confidence:.0%} confidence (at least {need} with none failing): this "
+              f"campaign can end fail or inconclusive, not pass", file=sys.stderr)
+
+
+def _say_decided(campaign: Any) -> None:
+    """The one console line of an early decision: verdict, samples used and saved, why."""
+    d = campaign.decision
+    total = campaign.plan.samples
+    run = len(campaign.samples)
+    print(f"hil: decided after {run} of {total} samples ({total - run} saved, "
+          f"{(total - run) / total:.0%}): {d.verdict.upper()}: {d.reason}", file=sys.stderr)
 
 
 def default_dispersion(rig: str) -> Path:
@@ -299,6 +372,14 @@ def _report(doc: dict[str, Any], out: Path) -> int:
           f"{s['passed']}/{s['judged']} passed"
           + (f" ({rate:.1%}; exact two-sided 95 % interval of the pass rate "
              f"{s['ci95'][0]:.3f}-{s['ci95'][1]:.3f})" if rate is not None else "")
-          + f"; {s['errors']} errors; {doc['wall_s']:.0f} s; report: {out / 'report.html'}",
+          + f"; {s['errors']} errors; {_used(doc)}{doc['wall_s']:.0f} s; "
+            f"report: {out / 'report.html'}",
           file=sys.stderr)
     return EXIT_BY_VERDICT.get(s["verdict"], 2)
+
+
+def _used(doc: dict[str, Any]) -> str:
+    d = doc.get("decision") or {}
+    if not d.get("early"):
+        return ""
+    return f"{d['samples_run']} samples used, {d['samples_saved']} saved; "

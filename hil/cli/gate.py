@@ -5,9 +5,10 @@
     hil gate qual/record.json --baseline ci/baselines/DUT.json --update-baseline
 
 Exit status: 0 pass; 1 fail (a measurement outside its limits or not computed, a regression
-beyond tolerance, a baseline measurement missing); 2 no verdict (the record is ``invalid-bench``
-or ``error``) or bad input (unreadable record, baseline or tolerance file; a baseline of another
-DUT).
+beyond tolerance, a baseline measurement missing; a campaign whose exact upper bound is below
+its required pass probability); 2 no verdict (the record is ``invalid-bench``, ``error`` or
+incomplete) or bad input (unreadable record, baseline or tolerance file; a baseline of another
+DUT); 3 a campaign that is inconclusive on its requirement (neither bound crosses it).
 """
 
 from __future__ import annotations
@@ -43,11 +44,16 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
         "gate", help="turn a qualification record into a pass/fail verdict for a build",
         description="Judge a qualification record (record.json of 'hil qualify'): every "
                     "measurement against its limits and, with --baseline, against a stored "
-                    "baseline with tolerance bands. Exit 0 pass, 1 fail, 2 no verdict "
-                    "(invalid bench, qualification error) or bad input.")
+                    "baseline with tolerance bands; or a campaign record (campaign.json of "
+                    "'hil campaign'): its pass probability against the profile's "
+                    "requirement by exact binomial bounds and, with --baseline, the shift of "
+                    "every measurement's distribution. Exit 0 pass, 1 fail, 2 no verdict "
+                    "(invalid bench, qualification error, incomplete record) or bad input, "
+                    "3 campaign inconclusive.")
     gate.add_argument("record", metavar="RECORD.json",
                       help="the qualification record, or a campaign.json of 'hil campaign' "
-                           "(then --baseline is another campaign.json)")
+                           "(then --baseline is a compact campaign baseline, which "
+                           "--update-baseline writes, or another campaign.json)")
     gate.add_argument("--baseline", metavar="BASELINE.json",
                       help="compare against this baseline (and write it with --update-baseline)")
     gate.add_argument("--tolerance", metavar="FILE.toml",
@@ -88,7 +94,13 @@ def _run(args: argparse.Namespace) -> int:
     if campaign and source.is_dir():
         source = source / "campaign.json"
     what = "campaign record" if campaign else "qualification record"
-    incomplete = incomplete_reason(read_json(source, what), path=str(source))
+    # (a campaign that stopped early is complete when its stopping rule decided; imported
+    # here: it needs scipy, which no other hil command should pay for)
+    if campaign:
+        from hil.gate.campaign_requirement import campaign_incomplete_reason as judge_complete
+    else:
+        judge_complete = incomplete_reason
+    incomplete = judge_complete(read_json(source, what), path=str(source))
     if incomplete:
         print(f"hil: error: {incomplete}", file=sys.stderr)
         return 2

@@ -24,11 +24,24 @@ from typing import Any
 import numpy as np
 from scipy.stats import t as student_t
 
-from hil.gate.keys import measurement_key
+from hil.gate.campaign_baseline import (
+    Moments,
+    SideStats,
+    is_compact,
+    stats_from_compact,
+    stats_from_samples,
+    worseness,
+)
+from hil.gate.campaign_requirement import RequirementVerdict, judge_requirement, worse
 from hil.gate.tolerance import DEFAULT_TOLERANCES, Tolerances
+
+__all__ = ["CampaignGateResult", "ShiftRow", "compare_campaigns", "render_campaign_text",
+           "welch_moments_p", "welch_shift_p", "worseness"]
 
 ALPHA = 0.01
 SHIFT_FRACTION = 0.25
+#: the campaign gate's exit status by verdict (anything else, no verdict: 2)
+EXIT_CODES = {"pass": 0, "fail": 1, "inconclusive": 3}
 
 
 @dataclass(frozen=True)
@@ -37,7 +50,9 @@ class ShiftRow:
 
     key: str
     name: str
-    status: str             # ok | regression | improved | missing | no-direction
+    #: ok | regression | improved | missing | no-direction | limits-changed (a two-sided
+    #: limit moved since a compact baseline) | no-value (never computed on one side)
+    status: str
     n: int = 0
     n_base: int = 0
     mean: float | None = None
@@ -50,52 +65,38 @@ class ShiftRow:
 
 @dataclass
 class CampaignGateResult:
-    verdict: str            # pass | fail | error
+    verdict: str            # pass | fail | inconclusive | error
     campaign_verdict: str
     rows: list[ShiftRow] = field(default_factory=list)
     alpha: float = ALPHA
     notes: list[str] = field(default_factory=list)
+    requirement: RequirementVerdict | None = None
 
     @property
     def exit_code(self) -> int:
-        return {"pass": 0, "fail": 1}.get(self.verdict, 2)
+        """0 pass, 1 fail, 3 inconclusive, 2 no verdict."""
+        return EXIT_CODES.get(self.verdict, 2)
 
     @property
     def regressions(self) -> list[ShiftRow]:
         return [r for r in self.rows if r.status in ("regression", "missing")]
 
 
-def _values(doc: dict[str, Any]) -> dict[str, tuple[dict[str, Any], list[float]]]:
-    out: dict[str, tuple[dict[str, Any], list[float]]] = {}
-    for s in doc["samples"]:
-        if s["verdict"] not in ("pass", "fail"):
-            continue
-        for m in s["measurements"]:
-            key = measurement_key(m["name"], m.get("conditions") or {})
-            value = m.get("value")
-            entry = out.setdefault(key, (m, []))
-            entry[1].append(math.nan if value is None else float(value))
-    return out
-
-
-def worseness(values: list[float], low: float | None, high: float | None) -> np.ndarray | None:
-    """Values as "how bad" (larger is worse), or None when the limits give no direction."""
-    x = np.asarray(values, dtype=float)
-    if low is not None and high is not None:
-        return np.abs(x - 0.5 * (low + high))
-    if high is not None:
-        return x
-    if low is not None:
-        return -x
-    return None
-
-
 def welch_shift_p(new: np.ndarray, base: np.ndarray, threshold: float) -> float:
     """One-sided p-value of ``mean(new) - mean(base) > threshold`` (Welch's t-test)."""
-    n1, n2 = new.size, base.size
-    d = float(new.mean() - base.mean())
-    v1 = float(new.var(ddof=1)) / n1 if n1 > 1 else 0.0
-    v2 = float(base.var(ddof=1)) / n2 if n2 > 1 else 0.0
+    a, b = Moments.of(new), Moments.of(base)
+    if a is None or b is None:
+        raise ValueError("Welch's test needs a finite value on each side")
+    return welch_moments_p(a, b, threshold)
+
+
+def welch_moments_p(new: Moments, base: Moments, threshold: float) -> float:
+    """:func:`welch_shift_p` from each side's count, mean and variance (all the test needs,
+    and all a compact baseline keeps)."""
+    n1, n2 = new.n, base.n
+    d = new.mean - base.mean
+    v1 = new.var / n1 if n1 > 1 else 0.0
+    v2 = base.var / n2 if n2 > 1 else 0.0
     se2 = v1 + v2
     if se2 == 0.0:
         return 0.0 if d > threshold else 1.0
@@ -104,19 +105,33 @@ def welch_shift_p(new: np.ndarray, base: np.ndarray, threshold: float) -> float:
     return float(student_t.sf((d - threshold) / math.sqrt(se2), df))
 
 
+def _baseline_stats(baseline: dict[str, Any]) -> dict[str, SideStats]:
+    return stats_from_compact(baseline) if is_compact(baseline) else stats_from_samples(baseline)
+
+
 def compare_campaigns(record: dict[str, Any], baseline: dict[str, Any] | None,
                       tolerances: Tolerances = DEFAULT_TOLERANCES, *, alpha: float = ALPHA,
                       shift_fraction: float = SHIFT_FRACTION,
                       allow_regressions: bool = False) -> CampaignGateResult:
-    """Gate a campaign: its own verdict, then (with a baseline) the shift of every mean."""
-    own = record["summary"]["verdict"]
-    result = CampaignGateResult(verdict="pass", campaign_verdict=own, alpha=alpha)
+    """Gate a campaign: its verdict on its requirement (the worse of the record's own and the
+    one recomputed from its samples, :mod:`hil.gate.campaign_requirement`), then (with a
+    baseline: another campaign record or a compact baseline) the shift of every mean."""
+    recorded = record["summary"]["verdict"]
+    path = str(record.get("_path", "campaign.json"))
+    judged = judge_requirement(record, path=path)
+    own = worse(recorded, judged.verdict or "error")
+    result = CampaignGateResult(verdict="pass", campaign_verdict=own, alpha=alpha,
+                                requirement=judged)
     if own == "error":
         result.verdict = "error"
-        result.notes.append("the campaign has no verdict (no sample completed)")
+        result.notes.append("the campaign has no verdict (no sample completed, or its "
+                            "stopping rule had not decided)")
         return result
+    if own != recorded:
+        result.notes.append(f"the record says {recorded}, its samples say {judged.verdict}: "
+                            f"{judged.reason}")
     if own in ("fail", "inconclusive"):
-        result.verdict = "fail"
+        result.verdict = own
         result.notes.append(f"the campaign itself is {own}: {record['summary']['reason']}")
     if record.get("status") != "complete":
         result.notes.append(f"the campaign is {record.get('status')}: "
@@ -126,48 +141,60 @@ def compare_campaigns(record: dict[str, Any], baseline: dict[str, Any] | None,
     if baseline["dut"].get("name") != record["dut"].get("name"):
         result.notes.append(f"baseline of {baseline['dut'].get('name')}, record of "
                             f"{record['dut'].get('name')}")
-    new, base = _values(record), _values(baseline)
+    result.notes += source_notes(record, baseline)
+    new, base = stats_from_samples(record), _baseline_stats(baseline)
     compared = [k for k in base if k in new]
     corrected = alpha / max(1, len(compared))
     for key in sorted(set(base) | set(new)):
         if key not in new:
-            result.rows.append(ShiftRow(key, base[key][0]["name"], "missing",
-                                        n_base=len(base[key][1])))
+            result.rows.append(ShiftRow(key, base[key].name, "missing", n_base=base[key].n))
             continue
         if key not in base:
             continue
-        meta, values = new[key]
-        w_new = worseness(values, meta.get("low"), meta.get("high"))
-        w_base = worseness(base[key][1], meta.get("low"), meta.get("high"))
-        mean, mean_base = _mean(values), _mean(base[key][1])
+        a, b = new[key], base[key]
+        row = {"key": key, "name": a.name, "n": a.n, "n_base": b.n, "mean": a.mean,
+               "mean_base": b.mean}
+        w_new, w_base = a.worse(a.low, a.high), b.worse(a.low, a.high)
         if w_new is None or w_base is None:
-            result.rows.append(ShiftRow(key, meta["name"], "no-direction", len(values),
-                                        len(base[key][1]), mean, mean_base))
+            result.rows.append(ShiftRow(status="no-direction", **row))
             continue
-        if np.isnan(w_new).any() and not np.isnan(w_base).any():
-            result.rows.append(ShiftRow(key, meta["name"], "regression", len(values),
-                                        len(base[key][1]), mean, mean_base,
-                                        p_value=0.0))
+        if a.not_computed and not b.not_computed:
+            result.rows.append(ShiftRow(status="regression", p_value=0.0, **row))
             continue
-        w_new, w_base = w_new[np.isfinite(w_new)], w_base[np.isfinite(w_base)]
-        band, _ = tolerances.band_for(meta["name"])
-        theta = shift_fraction * band.width(float(np.mean(np.abs(base[key][1]))))
-        shift = float(w_new.mean() - w_base.mean())
-        p = welch_shift_p(w_new, w_base, theta)
-        p_better = welch_shift_p(-w_new, -w_base, theta)
+        if isinstance(w_new, str) or isinstance(w_base, str):
+            result.rows.append(ShiftRow(status="limits-changed" if "changed" in (w_new, w_base)
+                                        else "no-value", **row))
+            continue
+        band, _ = tolerances.band_for(a.name)
+        theta = shift_fraction * band.width(b.mean_abs or 0.0)
+        p = welch_moments_p(w_new, w_base, theta)
+        p_better = welch_moments_p(w_new.negated(), w_base.negated(), theta)
         status = ("regression" if p < corrected else
                   "improved" if p_better < corrected else "ok")
-        result.rows.append(ShiftRow(key, meta["name"], status, w_new.size, w_base.size, mean,
-                                    mean_base, shift, theta, p))
+        result.rows.append(ShiftRow(status=status, shift=w_new.mean - w_base.mean,
+                                    threshold=theta, p_value=p, **row))
     if result.regressions and not allow_regressions:
         result.verdict = "fail"
     return result
 
 
-def _mean(values: list[float]) -> float | None:
-    x = np.asarray(values, dtype=float)
-    x = x[np.isfinite(x)]
-    return float(x.mean()) if x.size else None
+def source_notes(record: dict[str, Any], baseline: dict[str, Any]) -> list[str]:
+    """What differs between how the record's and the baseline's samples were drawn (suites,
+    -k, bus, clock, dispersion): a shift may then be the difference of the campaigns."""
+    src = baseline.get("source") if is_compact(baseline) else baseline
+    if not isinstance(src, dict):
+        return []
+    notes = []
+    for key in ("suites", "keyword", "bus", "clock"):
+        if src.get(key) != record.get(key):
+            notes.append(f"the baseline's {key} is {src.get(key)!r}, the record's "
+                         f"{record.get(key)!r}")
+
+    def sha(d: Any) -> Any:
+        return d.get("sha256") if isinstance(d, dict) else None
+    if sha(src.get("dispersion")) != sha(record.get("dispersion")):
+        notes.append("the baseline was drawn from another dispersion file")
+    return notes
 
 
 def render_campaign_text(result: CampaignGateResult, record: dict[str, Any]) -> str:
@@ -175,6 +202,15 @@ def render_campaign_text(result: CampaignGateResult, record: dict[str, Any]) -> 
     s = record["summary"]
     lines = [f"campaign gate: {result.verdict.upper()} ({record['dut'].get('name')}; campaign "
              f"{s['verdict']}: {s['reason']})"]
+    req, stated = result.requirement, record.get("requirement")
+    if req is not None:
+        need = (f"pass probability {stated['pass_probability']:g} at "
+                f"{stated['confidence']:.0%} confidence" if stated else
+                "no requirement stated: every sample must pass")
+        used = (f"; decided after {req.samples_run} of {req.samples_requested} samples "
+                f"({req.rule})" if req.samples_run < req.samples_requested else "")
+        lines.append(f"  requirement: {need}: {(req.verdict or 'undecided').upper()}"
+                     f"{used}")
     lines += [f"  note: {n}" for n in result.notes]
     if result.rows:
         tested = sum(1 for r in result.rows if r.p_value is not None) or 1
