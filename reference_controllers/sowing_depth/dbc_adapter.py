@@ -10,19 +10,20 @@ cantools; values are converted from the database's units to the law's (mm, mV, m
 the units the database declares, and rounded to the signal's resolution, as the reference's
 own codec rounds.
 
-As a CANopen master it configures its drive at boot, as masters do (:mod:`.drive_config`): the
-drive's PDOs are remapped by SDO to the DP-200's frames (``DP_DriveCommand``: RPDO1 at 0x302,
-Target velocity then Controlword, synchronous; ``DP_DriveFeedback``: TPDO1 at 0x1A2, Position
-actual value, Statusword, Modes of operation display, every SYNC; ``DP_DriveDiagnosis``: TPDO3
-at 0x2A2, Error code and Current actual value, event-driven every 100 ms with a 10 ms inhibit
-time; every other PDO invalid) and the heartbeat producer time is written, and only then is
-the drive started (NMT start). It configures the
-drive again whenever the drive boots or reports anything but Operational (a reset restores
-the EDS defaults); a drive it finds Operational after its own power cycle keeps the
-configuration it gave it before. Profile velocity mode (0x6060 = 3) is selected by SDO on the
-first step with the drive Operational, once per start of the drive: none of its PDOs maps the
-mode. A refused write stops the configuration, leaves the drive stopped and puts the status
-in Fault (:attr:`DbcDepthController.config_error` says which object and code).
+As a CANopen master it configures its drive at boot, as masters do (:mod:`.drive_config`): on
+the drive's boot-up it sends the SDO writes that remap the drive's PDOs to the DP-200's frames
+(``DP_DriveCommand``: RPDO1 at 0x302, Target velocity then Controlword, synchronous;
+``DP_DriveFeedback``: TPDO1 at 0x1A2, Position actual value, Statusword, Modes of operation
+display, every SYNC; ``DP_DriveDiagnosis``: TPDO3 at 0x2A2, Error code and Current actual
+value, event-driven every 100 ms with a 10 ms inhibit time; every other PDO invalid) and set
+the heartbeat producer time; its next control step starts the drive (NMT start) once every
+write is confirmed. It configures the drive again whenever the drive boots or reports anything
+but Operational (a reset restores the EDS defaults); a drive it finds Operational after its
+own power cycle keeps the configuration it gave it before. Profile velocity mode (0x6060 = 3)
+is selected by SDO on the first step with the drive Operational, once per start of the drive:
+none of its PDOs maps the mode. A refused write leaves the drive stopped and the status in
+Fault (:attr:`DbcDepthController.config_error` says which object and code). Every frame it
+sends is either an answer to the drive's boot-up or part of a control step, as lockstep asks.
 
 The control law, its parameters and its step order are the reference's
 (:class:`reference_controllers.sowing_depth.adapter.DepthController`): the fuzzy PID, the
@@ -58,7 +59,7 @@ from reference_controllers.sowing_depth.cia402_master import (
 )
 from reference_controllers.sowing_depth.drive_config import (
     PdoConfig,
-    SdoSequence,
+    SdoBatch,
     check_against_database,
     configuration_writes,
 )
@@ -251,9 +252,9 @@ class DbcDepthController(Controller):
         self._by_id = {(x.frame_id, bool(x.is_extended_frame)): x for x in (
             self._setpoint, self._sensors, self._speed, self._feedback, self._diagnosis,
             self._drive_heartbeat, self._sdo_response)}
-        self.sdo: SdoSequence | None = None
+        self.sdo: SdoBatch | None = None
         #: the mode write (0x6060), once per start of the drive
-        self.mode_sdo: SdoSequence | None = None
+        self.mode_sdo: SdoBatch | None = None
         self.configured = False
         self.config_error: str | None = None
         self.drive_nmt: int | None = None
@@ -346,47 +347,52 @@ class DbcDepthController(Controller):
 
     # --- the drive's configuration (CANopen master) -------------------------------------------
     def _on_drive_heartbeat(self, state: int) -> list[can.Message]:
-        """Configure the drive when it booted or is not Operational; start it once configured.
+        """Configure the drive when it booted or is not Operational (it is started by the
+        next step once every write is confirmed).
 
         A drive found Operational without our configuration (after our own power cycle) is
         taken as configured: only its boot (power-up, NMT reset) restores its EDS defaults,
         and then it reports boot-up and is configured again.
         """
         self.drive_nmt = state
-        running = self.sdo is not None and not self.sdo.done and self.sdo.error is None
+        pending = self.sdo is not None and self.sdo.pending
         if state != OPERATIONAL:
             self.mode_sdo = None      # selected again once the drive is started
         if self.config_error is not None and state != BOOT_UP:
             return []                 # refused: the drive stays stopped until it reboots
-        if state == BOOT_UP or (state != OPERATIONAL and not running):
+        if state == BOOT_UP or (state != OPERATIONAL and not pending):
             self.configured, self.config_error = False, None
-            self.sdo = SdoSequence(self._sdo_request, self._sdo_response, self.configuration)
-            return [self.sdo.first()]
-        if state == OPERATIONAL and not running:
+            self.sdo = SdoBatch(self._sdo_request, self._sdo_response, self.configuration)
+            return self.sdo.frames()
+        if state == OPERATIONAL and not pending:
             self.configured = True
         return []
 
     def _on_sdo_response(self, data: bytes) -> list[can.Message]:
-        if self.mode_sdo is not None and not self.mode_sdo.done:
-            self.mode_sdo.on_response(data)
-            self.config_error = self.config_error or self.mode_sdo.error
+        batch = self.sdo if self.sdo is not None and self.sdo.pending else self.mode_sdo
+        if batch is not None:
+            batch.on_response(data)
+            self.config_error = self.config_error or batch.error
+        return []
+
+    def _drive_management(self) -> list[can.Message]:
+        """This step's frames to the drive ahead of its command: the NMT start once the
+        configuration is confirmed, then (once the drive reports Operational) the mode."""
+        if self.config_error is not None:
             return []
-        if self.sdo is None:
-            return []
-        nxt = self.sdo.on_response(data)
-        if nxt is not None:
-            return [nxt]
-        if self.sdo.error is not None:
-            self.config_error = self.sdo.error
-            return []
-        if not self.sdo.done or self.configured:
-            return []
-        self.configured = True
-        if self.drive_nmt == OPERATIONAL:
-            return []
-        nmt = self.db.get_message_by_name(self.map.nmt)
-        return [can.Message(arbitration_id=nmt.frame_id, is_extended_id=False,
-                            data=nmt.encode({"Command": NMT_START, "Node": self.drive_node}))]
+        if self.sdo is not None and self.sdo.done and not self.configured:
+            self.configured = True
+            if self.drive_nmt != OPERATIONAL:
+                nmt = self.db.get_message_by_name(self.map.nmt)
+                return [can.Message(arbitration_id=nmt.frame_id, is_extended_id=False,
+                                    data=nmt.encode({"Command": NMT_START,
+                                                     "Node": self.drive_node}))]
+        if self.configured and self.drive_nmt == OPERATIONAL and self.mode_sdo is None:
+            # profile velocity, once per start of the drive: no PDO of ours maps 0x6060
+            self.mode_sdo = SdoBatch(self._sdo_request, self._sdo_response,
+                                     [(0x6060, 0, MODE_PROFILE_VELOCITY, 1)])
+            return self.mode_sdo.frames()
+        return []
 
     # --- the control step -----------------------------------------------------------------
     def on_tick(self) -> list[can.Message]:
@@ -409,12 +415,7 @@ class DbcDepthController(Controller):
         if self.gnss is not None:
             for value in self.gnss.poll():
                 self.speeds.update("gnss", value, self.now_s)
-        out = []
-        if self.configured and self.drive_nmt == OPERATIONAL and self.mode_sdo is None:
-            # profile velocity, once per start of the drive: no PDO of ours maps 0x6060
-            self.mode_sdo = SdoSequence(self._sdo_request, self._sdo_response,
-                                        [(0x6060, 0, MODE_PROFILE_VELOCITY, 1)])
-            out.append(self.mode_sdo.first())
+        out = self._drive_management()
         controlword = next_controlword(self.statusword, self.last_controlword)
         self.last_controlword = controlword
         frozen = self.frozen()

@@ -10,9 +10,8 @@ can move from one PDO to another; then per PDO: mapping count 0, the entries, th
 transmission type, inhibit time, event timer, the COB-ID with bit 31 clear), followed by the
 application objects (a mode of operation, the heartbeat producer time).
 :func:`check_against_database` holds the database's frames to the mapping, so the two cannot
-drift apart. :class:`SdoSequence` runs the writes as expedited SDO downloads, one after another
-on the drive's confirmations, as a master's boot-up does; an abort stops it and says which
-object the drive refused and with which code.
+drift apart. :class:`SdoBatch` sends the writes as expedited SDO downloads and checks the
+drive's confirmations; an abort says which object the drive refused and with which code.
 
 Sizes are CiA 301's and CiA 402's data types (COB-IDs and mapping entries UNSIGNED32,
 transmission type and mapping count UNSIGNED8, inhibit time, event timer and heartbeat time
@@ -32,7 +31,7 @@ from typing import Any, Literal
 
 import can
 
-__all__ = ["NOT_VALID", "PdoConfig", "SdoSequence", "Write", "check_against_database",
+__all__ = ["NOT_VALID", "PdoConfig", "SdoBatch", "Write", "check_against_database",
            "configuration_writes", "default_cob_id"]
 
 #: bit 31 of a PDO COB-ID: the PDO does not exist (CiA 301)
@@ -155,8 +154,14 @@ def check_against_database(pdos: Sequence[PdoConfig], db: Any) -> dict[str, int]
     return ids
 
 
-class SdoSequence:
-    """Expedited SDO downloads to one node, one at a time, each on the last one's confirmation.
+class SdoBatch:
+    """Expedited SDO downloads to one node, sent back to back, their confirmations checked.
+
+    The node's SDO server answers requests in the order they come, so the n-th answer is the
+    n-th request's. A strict CiA 301 client sends the next request only on the last one's
+    confirmation; sending them together keeps every frame of the master a direct answer to
+    the node's boot-up, as lockstep asks (a chain of request, confirmation, request would put
+    the master's frames between the rig's steps: ``docs/guide/clocks.md``).
 
     Parameters
     ----------
@@ -170,37 +175,42 @@ class SdoSequence:
     def __init__(self, request: Any, response: Any, writes: Sequence[Write]) -> None:
         self.request, self.response = request, response
         self.writes = list(writes)
-        self.position = 0
+        #: writes confirmed so far
+        self.confirmed = 0
         #: why the node refused (None while it accepts)
         self.error: str | None = None
 
     @property
     def done(self) -> bool:
         """Every write confirmed."""
-        return self.position >= len(self.writes) and self.error is None
+        return self.confirmed >= len(self.writes) and self.error is None
 
-    def first(self) -> can.Message:
-        """The first request."""
-        return self._frame(self.writes[0])
+    @property
+    def pending(self) -> bool:
+        """Answers are still due (and none refused)."""
+        return self.confirmed < len(self.writes) and self.error is None
 
-    def on_response(self, data: bytes) -> can.Message | None:
-        """Take the node's answer: the next request, or None (done, refused, or not ours)."""
-        if self.error is not None or self.position >= len(self.writes):
-            return None
+    def frames(self) -> list[can.Message]:
+        """Every request, in order."""
+        return [self._frame(write) for write in self.writes]
+
+    def on_response(self, data: bytes) -> None:
+        """Take the node's next answer: a confirmation, or an abort (kept in :attr:`error`)."""
+        if not self.pending:
+            return
         answer = self.response.decode(bytes(data), decode_choices=False)
-        index, subindex, value, _ = self.writes[self.position]
+        index, subindex, value, _ = self.writes[self.confirmed]
         if (int(answer["Index"]), int(answer["SubIndex"])) != (index, subindex):
-            return None
-        if int(answer["Command"]) == _ABORT:
+            self.error = (f"0x{index:04X}:{subindex:02X}: answered for "
+                          f"0x{int(answer['Index']):04X}:{int(answer['SubIndex']):02X}")
+        elif int(answer["Command"]) == _ABORT:
             self.error = (f"0x{index:04X}:{subindex:02X} = 0x{value:X} refused (SDO abort "
                           f"0x{int(answer['Data']):08X})")
-            return None
-        if int(answer["Command"]) != _DOWNLOAD_CONFIRMED:
-            return None
-        self.position += 1
-        if self.position >= len(self.writes):
-            return None
-        return self._frame(self.writes[self.position])
+        elif int(answer["Command"]) == _DOWNLOAD_CONFIRMED:
+            self.confirmed += 1
+        else:
+            self.error = (f"0x{index:04X}:{subindex:02X}: unexpected answer "
+                          f"0x{int(answer['Command']):02X}")
 
     def _frame(self, write: Write) -> can.Message:
         index, subindex, value, size = write
