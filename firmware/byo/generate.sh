@@ -3,13 +3,14 @@
 # controller's own CAN database, docs/examples/byo-fertilizer/ratemaster_rc400.dbc, with
 # cantools, exactly as ../generate.sh does for agrihil's DBCs. Nothing in the adapter names a
 # bit position, byte order or scaling: they all come from here.
-# Run from anywhere; needs Python with cantools. The output is committed so the firmware builds
-# without Python; rerun after editing the database (then rebuild and run ctest).
+# Run from anywhere; needs Python with cantools ($PYTHON, default python3). The output is
+# committed so the firmware builds without Python; rerun after editing the database (then
+# rebuild and run ctest). An argument writes elsewhere (the tests compare with the committed).
 set -eu
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/../.." && pwd)
 python=${PYTHON:-python3}
-out="$here/generated"
+out="${1:-$here/generated}"
 mkdir -p "$out"
 "$python" -m cantools generate_c_source --use-round -o "$out" \
     "$root/docs/examples/byo-fertilizer/ratemaster_rc400.dbc"

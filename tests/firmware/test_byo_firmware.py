@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import fcntl
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -36,6 +37,7 @@ EXAMPLE = ROOT / "docs" / "examples" / "byo-fertilizer"
 BINDING = EXAMPLE / "ratemaster_rc400.binding.toml"
 PROFILE = EXAMPLE / "ratemaster-rc400-firmware.toml"
 REFERENCE = ROOT / "dut_profiles" / "fertilizer-piecewise-pid-firmware.toml"
+GENERATED = ROOT / "firmware" / "byo" / "generated"
 VECTORS = ROOT / "firmware" / "byo" / "tests" / "data"
 MAKE_VECTORS = ROOT / "firmware" / "byo" / "tests" / "make_vectors.py"
 APP = "agrihil-fertilizer-rc400-fw"
@@ -124,6 +126,16 @@ def test_the_vectors_are_what_the_python_build_writes(tmp_path: Path) -> None:
     for name in written:
         assert (tmp_path / name).read_text() == (VECTORS / name).read_text(), \
             f"{name} is stale: rerun {MAKE_VECTORS.relative_to(ROOT)} {VECTORS.relative_to(ROOT)}"
+
+
+def test_the_bus_layer_is_generated_from_the_database(tmp_path: Path) -> None:
+    """The committed C bus layer is what cantools generates from the RC-400's database today:
+    the C build speaks the layout the rig is bound to, not a stale copy of it."""
+    subprocess.run(["sh", str(ROOT / "firmware" / "byo" / "generate.sh"), str(tmp_path)],
+                   check=True, capture_output=True, env={**os.environ, "PYTHON": sys.executable})
+    for name in ("ratemaster_rc400.c", "ratemaster_rc400.h"):
+        assert (tmp_path / name).read_bytes() == (GENERATED / name).read_bytes(), \
+            f"{name} is stale: rerun firmware/byo/generate.sh"
 
 
 def test_the_profile_checks() -> None:
