@@ -11,10 +11,15 @@
 #define TP_T3_S 1.25
 #define TP_T4_S 1.05
 #define TP_MAX_RETRANSMITS 2
+#define TP_T1_S 0.75
+#define TP_T2_S 1.25
+#define TP_CTS_PACKETS 16
 
 enum { CM_RTS = 16, CM_CTS = 17, CM_EOMA = 19, CM_BAM = 32, CM_ETP_RTS = 20, CM_ETP_CTS = 21,
        CM_ETP_DPO = 22, CM_ETP_EOMA = 23, CM_ABORT = 255 };
-enum { ABORT_TIMEOUT = 3, ABORT_MAX_RETRANSMIT = 5, ABORT_OTHER = 250 };
+enum { ABORT_ALREADY_IN_SESSION = 1, ABORT_RESOURCES = 2, ABORT_TIMEOUT = 3,
+       ABORT_MAX_RETRANSMIT = 5, ABORT_UNEXPECTED_DATA = 6, ABORT_BAD_SEQUENCE = 7,
+       ABORT_DUPLICATE_SEQUENCE = 8, ABORT_OTHER = 250 };
 
 uint32_t iso_can_id(uint8_t priority, uint32_t pgn, uint8_t source, uint8_t destination)
 {
@@ -213,6 +218,158 @@ static void tp_on_cts(iso_net_t *n, uint8_t packets, uint8_t next)
     s->deadline = n->now + TP_T3_S;
 }
 
+/* --- TP receiver ----------------------------------------------------------------------------- */
+
+static void cm_from(iso_net_t *n, bool etp, uint8_t from, uint8_t to, uint32_t pgn,
+                   const uint8_t body[5])
+{
+    uint8_t data[8] = {body[0], body[1], body[2], body[3], body[4], (uint8_t)(pgn & 0xFFu),
+                       (uint8_t)((pgn >> 8) & 0xFFu), (uint8_t)((pgn >> 16) & 0xFFu)};
+    emit(n, TP_PRIORITY, etp ? ISO_PGN_ETP_CM : ISO_PGN_TP_CM, from, to, data, 8);
+}
+
+static void rx_abort(iso_net_t *n, iso_tp_receiver_t *r, uint8_t reason)
+{
+    uint8_t body[5] = {CM_ABORT, reason, 0xFF, 0xFF, 0xFF};
+    if (!r->bam) {
+        cm_from(n, false, r->destination, r->source, r->pgn, body);
+    }
+    r->open = false;
+}
+
+static iso_tp_receiver_t *rx_find(iso_net_t *n, uint8_t source, uint8_t destination)
+{
+    for (size_t i = 0; i < ISO_NET_RX_SESSIONS; i++) {
+        iso_tp_receiver_t *r = &n->rx[i];
+        if (r->open && r->source == source && r->destination == destination) {
+            return r;
+        }
+    }
+    return NULL;
+}
+
+static void rx_send_cts(iso_net_t *n, iso_tp_receiver_t *r)
+{
+    unsigned left = (unsigned)r->total - r->next_packet + 1u;
+    unsigned count = r->window_packets < left ? r->window_packets : left;
+    r->window_end = (uint16_t)(r->next_packet + count - 1u);
+    uint8_t body[5] = {CM_CTS, (uint8_t)count, (uint8_t)r->next_packet, 0xFF, 0xFF};
+    cm_from(n, false, r->destination, r->source, r->pgn, body);
+    r->deadline = n->now + TP_T2_S;
+}
+
+static void rx_on_rts(iso_net_t *n, uint8_t control, const uint8_t *d, uint32_t pgn,
+                      uint8_t source, uint8_t destination)
+{
+    bool bam = control == CM_BAM;
+    bool etp = control == CM_ETP_RTS;
+    if (bam != (destination == ISO_GLOBAL)) {
+        return; /* a BAM to one address or an RTS to everyone: no connection */
+    }
+    uint32_t size = etp ? (uint32_t)d[1] | ((uint32_t)d[2] << 8) | ((uint32_t)d[3] << 16) |
+                              ((uint32_t)d[4] << 24)
+                        : (uint32_t)d[1] | ((uint32_t)d[2] << 8);
+    uint32_t total = (size + 6u) / 7u;
+    iso_tp_receiver_t *old = rx_find(n, source, destination);
+    if (old != NULL) {
+        old->open = false; /* replaced by the new connection */
+    }
+    uint8_t abort_body[5] = {CM_ABORT, ABORT_OTHER, 0xFF, 0xFF, 0xFF};
+    if (etp) {
+        if (size > ISO_TP_MAX_BYTES && size <= 117440505u) {
+            abort_body[1] = ABORT_RESOURCES; /* no room for ETP here (see iso_net.h) */
+        }
+        cm_from(n, true, destination, source, pgn, abort_body);
+        return;
+    }
+    if (size < 9 || size > ISO_TP_MAX_BYTES || d[3] != total) {
+        if (!bam) {
+            cm_from(n, false, destination, source, pgn, abort_body);
+        }
+        return;
+    }
+    iso_tp_receiver_t *r = NULL;
+    size_t peers = 0;
+    for (size_t i = 0; i < ISO_NET_RX_SESSIONS; i++) {
+        if (!n->rx[i].open && r == NULL) {
+            r = &n->rx[i];
+        } else if (n->rx[i].open && !n->rx[i].bam) {
+            peers++;
+        }
+    }
+    if (r == NULL) {
+        if (!bam) {
+            abort_body[1] = ABORT_ALREADY_IN_SESSION;
+            cm_from(n, false, destination, source, pgn, abort_body);
+        }
+        return;
+    }
+    (void)peers;
+    memset(r, 0, sizeof *r);
+    r->open = true;
+    r->bam = bam;
+    r->pgn = pgn;
+    r->source = source;
+    r->destination = destination;
+    r->size = (uint16_t)size;
+    r->total = (uint16_t)total;
+    r->next_packet = 1;
+    if (bam) {
+        r->deadline = n->now + TP_T1_S;
+        return;
+    }
+    unsigned limit = d[4] != 0xFF ? d[4] : 255u;
+    r->window_packets = (uint16_t)(limit < TP_CTS_PACKETS ? limit : TP_CTS_PACKETS);
+    rx_send_cts(n, r);
+}
+
+static void rx_on_data(iso_net_t *n, iso_tp_receiver_t *r, const uint8_t *d, size_t len)
+{
+    unsigned seq = d[0];
+    if (r->bam) {
+        if (seq != r->next_packet) {
+            r->open = false; /* dropped */
+            return;
+        }
+    } else {
+        if (r->next_packet > r->window_end) {
+            rx_abort(n, r, ABORT_UNEXPECTED_DATA);
+            return;
+        }
+        if (seq < r->next_packet) {
+            rx_abort(n, r, ABORT_DUPLICATE_SEQUENCE);
+            return;
+        }
+        if (seq > r->next_packet) {
+            rx_abort(n, r, ABORT_BAD_SEQUENCE);
+            return;
+        }
+    }
+    size_t at = (size_t)(r->next_packet - 1u) * 7u;
+    memset(r->data + at, 0xFF, 7);
+    memcpy(r->data + at, d + 1, len - 1 < 7 ? len - 1 : 7);
+    r->next_packet++;
+    if (r->next_packet > r->total) {
+        if (!r->bam) {
+            uint8_t body[5] = {CM_EOMA, (uint8_t)(r->size & 0xFFu), (uint8_t)(r->size >> 8),
+                               (uint8_t)r->total, 0xFF};
+            cm_from(n, false, r->destination, r->source, r->pgn, body);
+        }
+        r->open = false;
+        bool to_us = r->destination == ISO_GLOBAL ||
+                     (n->current == r->destination && r->destination != ISO_NULL);
+        if (to_us && n->current != r->source) {
+            n->deliver(n->ctx, r->pgn, r->data, r->size, r->source, r->destination, n->now);
+        }
+        return;
+    }
+    if (!r->bam && r->next_packet > r->window_end) {
+        rx_send_cts(n, r);
+    } else {
+        r->deadline = n->now + TP_T1_S;
+    }
+}
+
 /* A TP/ETP connection management frame from `source` to `destination` (ours). */
 static void tp_on_cm(iso_net_t *n, bool extended, const uint8_t *d, size_t len, uint8_t source,
                      uint8_t destination)
@@ -230,7 +387,13 @@ static void tp_on_cm(iso_net_t *n, bool extended, const uint8_t *d, size_t len, 
     uint32_t pgn = (uint32_t)d[5] | ((uint32_t)d[6] << 8) | ((uint32_t)d[7] << 16);
     iso_tp_sender_t *s = &n->tp;
     bool mine = s->open && s->source == destination && s->destination == source;
+    iso_tp_receiver_t *theirs = rx_find(n, source, destination);
     switch (c) {
+    case CM_RTS:
+    case CM_BAM:
+    case CM_ETP_RTS:
+        rx_on_rts(n, c, d, pgn, source, destination);
+        break;
     case CM_CTS:
         if (mine && pgn == s->pgn) {
             tp_on_cts(n, d[1], d[2]);
@@ -246,9 +409,12 @@ static void tp_on_cm(iso_net_t *n, bool extended, const uint8_t *d, size_t len, 
         if (mine && pgn == s->pgn) {
             tp_end(n);
         }
+        if (theirs != NULL && theirs->pgn == pgn && !theirs->bam) {
+            theirs->open = false;
+        }
         break;
     default:
-        break; /* RTS, BAM, ETP: this function receives no long groups (see iso_net.h) */
+        break; /* ETP CTS / DPO: no ETP session here (see iso_net.h) */
     }
 }
 
@@ -256,6 +422,12 @@ static void tp_poll(iso_net_t *n)
 {
     if (n->tp.open && n->tp.deadline <= n->now) {
         tp_abort(n, ABORT_TIMEOUT);
+    }
+    for (size_t i = 0; i < ISO_NET_RX_SESSIONS; i++) {
+        iso_tp_receiver_t *r = &n->rx[i];
+        if (r->open && r->deadline <= n->now) {
+            rx_abort(n, r, ABORT_TIMEOUT); /* a BAM is dropped without a word */
+        }
     }
 }
 
@@ -375,9 +547,16 @@ void iso_net_on_frame(iso_net_t *n, const hal_can_frame_t *f, double now_s)
     }
     if (pgn == ISO_PGN_TP_CM || pgn == ISO_PGN_TP_DT || pgn == ISO_PGN_ETP_CM ||
         pgn == ISO_PGN_ETP_DT) {
-        if ((destination == ISO_GLOBAL || local(n, destination)) &&
-            (pgn == ISO_PGN_TP_CM || pgn == ISO_PGN_ETP_CM)) {
+        if (destination != ISO_GLOBAL && !local(n, destination)) {
+            return;
+        }
+        if (pgn == ISO_PGN_TP_CM || pgn == ISO_PGN_ETP_CM) {
             tp_on_cm(n, pgn == ISO_PGN_ETP_CM, d, len, source, destination);
+        } else if (pgn == ISO_PGN_TP_DT && len >= 1) {
+            iso_tp_receiver_t *r = rx_find(n, source, destination);
+            if (r != NULL) {
+                rx_on_data(n, r, d, len);
+            }
         }
         return;
     }

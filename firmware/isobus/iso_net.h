@@ -17,14 +17,21 @@
  * address-claimed PGN to everyone or to the function repeats its claim. As the Python, no
  * pseudo-random delay before a cannot-claim and no commanded address.
  *
- * Transport (ISO 11783-3): groups of 9 .. 1785 bytes to one address go by TP RTS/CTS
+ * Transport (ISO 11783-3), sending: groups of 9 .. 1785 bytes to one address go by TP RTS/CTS
  * (RTS with "no limit" 0xFF packets per CTS; every packet a CTS asks for at once; T3 = 1.25 s
  * for the next CTS or the end-of-message acknowledgement, T4 = 1.05 s after a hold; a timeout
  * aborts with reason 3; a CTS beyond the message aborts with 250, a third retransmission
  * request with 5). A second long group to the same peer waits for the first
- * (ISO_NET_TP_QUEUE). Not implemented (the controller sends none and takes none): BAM
- * sending, ETP, and receiving TP/BAM/ETP: an RTS or BAM to it is ignored (the Python would
- * receive it and, the pool being the only long group, not use it). */
+ * (ISO_NET_TP_QUEUE). Not implemented (the controller sends none): BAM, ETP.
+ *
+ * Receiving: TP RTS/CTS (at most 16 packets per CTS, or the RTS's limit; T2 = 1.25 s for the
+ * first packet after a CTS, T1 = 0.75 s between packets; out of order: abort 7, a repeat: 8,
+ * outside the window: 6, a bad RTS: 250; end-of-message acknowledgement, then the group is
+ * delivered) and BAM (T1; a packet out of order drops it), ISO_NET_RX_SESSIONS at once. Where
+ * the Python (16 peer sessions, ETP up to 117 MB) has room and this has not, it differs: a TP
+ * RTS beyond ISO_NET_RX_SESSIONS open sessions is aborted with reason 1 (the Python: beyond
+ * 16), an ETP RTS is aborted with reason 2 (resources), a BAM without a free session is not
+ * heard. */
 #ifndef AGRIHIL_ISO_NET_H
 #define AGRIHIL_ISO_NET_H
 
@@ -41,6 +48,7 @@
 #define ISO_NET_MAX_OUT 320 /* frames one call can produce: a CTS window of 255 packets + more */
 #define ISO_NET_QUEUE 16    /* groups held while the claim settles */
 #define ISO_NET_TP_QUEUE 2  /* long groups waiting for the TP session to the same peer */
+#define ISO_NET_RX_SESSIONS 4 /* TP and BAM groups being received at once */
 
 #define ISO_PGN_REQUEST 0xEA00u
 #define ISO_PGN_ADDRESS_CLAIMED 0xEE00u
@@ -78,6 +86,19 @@ typedef struct {
 } iso_tp_sender_t;
 
 typedef struct {
+    bool open;
+    bool bam;
+    uint32_t pgn;
+    uint8_t source, destination;
+    uint16_t size, total;
+    uint16_t next_packet;    /* next packet number expected */
+    uint16_t window_end;     /* last packet of the current CTS window */
+    uint16_t window_packets; /* packets one CTS asks for */
+    double deadline;
+    uint8_t data[ISO_TP_MAX_BYTES + 7];
+} iso_tp_receiver_t;
+
+typedef struct {
     /* who we are */
     uint64_t name;
     uint8_t preferred;
@@ -97,6 +118,7 @@ typedef struct {
     iso_tp_sender_t tp;
     iso_group_t tp_queue[ISO_NET_TP_QUEUE];
     size_t ntp_queue;
+    iso_tp_receiver_t rx[ISO_NET_RX_SESSIONS];
     /* the outbox */
     hal_can_frame_t out[ISO_NET_MAX_OUT];
     size_t nout;

@@ -36,6 +36,7 @@ Scenarios:
   beyond the message (abort 250), every kind of process data command with good and bad
   elements, DDIs, values and triggers, malformed frames, NACKs to others and to the
   controller, a version request timing out, no language command, an activation refused;
+* ``isobus-scripted-tp``: long groups to the controller by TP and BAM, good and bad;
 * ``isobus-tc-no-memory``: a scripted TC without memory for the pool.
 """
 
@@ -284,6 +285,66 @@ def _scripted_tc() -> list[tuple[float, can.Message]]:
     return script
 
 
+def _tp(source: int, destination: int, hex_data: str) -> can.Message:
+    return _frame(7, 0xEC00, source, destination, hex_data)
+
+
+def _dt(source: int, destination: int, hex_data: str) -> can.Message:
+    return _frame(7, 0xEB00, source, destination, hex_data)
+
+
+def _scripted_tp() -> list[tuple[float, can.Message]]:
+    """Long groups to the controller: TP (good and bad), BAM, aborts, timeouts."""
+    peer, other = 0x90, 0x91
+    return [
+        *_connect_script()[:4],
+        # the structure label with an extended label, 15 bytes by TP, one packet per CTS
+        (0.75, _tp(TC, ME, "10 0F 00 03 01 00 CB 00")),
+        (0.85, _dt(TC, ME, "01 11 41 47 46 2D 49 53")),
+        (0.95, _dt(TC, ME, "02 4F 45 58 54 4C 41 42")),
+        (1.05, _dt(TC, ME, "03 4C")),                            # short last frame: padded
+        (1.15, _pd("51 00 FF FF FF FF FF FF")),                  # transfer: go ahead
+        (1.25, _cts(16, 1)),
+        (1.35, _tp(TC, ME, "FF FA FF FF FF 00 CB 00")),           # the TC aborts the transfer
+        (1.45, _pd("71 00 5F 03 00 00 FF FF")),
+        (1.55, _pd("91 00 FF FF FF FF 00 FF")),                  # activated
+        # a BAM (DM1 of 10 bytes) to everyone, heard and let go; one out of order, dropped
+        (1.65, _tp(TECU, 0xFF, "20 0A 00 02 FF CA FE 00")),
+        (1.72, _dt(TECU, 0xFF, "01 00 FF 00 00 00 00 FF")),
+        (1.79, _dt(TECU, 0xFF, "02 FF FF FF FF FF FF FF")),
+        (1.85, _tp(TECU, 0xFF, "20 0A 00 02 FF CA FE 00")),
+        (1.92, _dt(TECU, 0xFF, "02 FF FF FF FF FF FF FF")),
+        # bad RTSs: too short, packets not matching the size, a BAM to one address
+        (2.05, _tp(peer, ME, "10 05 00 01 FF 00 CB 00")),
+        (2.05, _tp(other, ME, "10 0A 00 03 FF 00 CB 00")),
+        (2.05, _tp(peer, ME, "20 0A 00 02 FF 00 CB 00")),
+        # out of order: abort 7; a repeat: abort 8
+        (2.15, _tp(peer, ME, "10 15 00 03 FF 00 CB 00")),
+        (2.25, _dt(peer, ME, "02 00 00 00 00 00 00 00")),
+        (2.35, _tp(peer, ME, "10 15 00 03 02 00 CB 00")),
+        (2.45, _dt(peer, ME, "01 00 00 00 00 00 00 00")),
+        (2.45, _dt(peer, ME, "01 00 00 00 00 00 00 00")),
+        # one packet per CTS: the next CTS goes at once after each (then T2 runs out)
+        (2.55, _tp(other, ME, "10 15 00 03 01 00 CB 00")),
+        (2.65, _dt(other, ME, "01 00 00 00 00 00 00 00")),
+        (2.65, _dt(other, ME, "02 00 00 00 00 00 00 00")),
+        # no data after the CTS: T2, abort 3; a BAM left unfinished: dropped after T1
+        (2.75, _tp(peer, ME, "10 15 00 03 FF 00 CB 00")),
+        (2.75, _tp(TECU, 0xFF, "20 0A 00 02 FF CA FE 00")),
+        # a connection replaced by a new RTS, then aborted by its sender
+        (4.25, _tp(other, ME, "10 15 00 03 FF 00 CB 00")),
+        (4.35, _tp(other, ME, "10 0E 00 02 FF 00 CB 00")),
+        (4.45, _tp(other, ME, "FF 01 FF FF FF 00 CB 00")),
+        # a value command by TP (12 bytes: the first 8 count), to another address: not ours
+        (4.55, _tp(TC, 0x82, "10 0C 00 02 FF 00 CB 00")),
+        (4.65, _tp(TC, ME, "10 0C 00 02 FF 00 CB 00")),
+        (4.75, _dt(TC, ME, "01 13 00 06 00 80 3E 00")),
+        (4.85, _dt(TC, ME, "02 00 AA BB CC DD FF FF")),
+        (4.95, _pd(_element(0x2, 1, 6, -1))),
+        (5.45, _status()),
+    ]
+
+
 def _scripted_no_memory() -> list[tuple[float, can.Message]]:
     return [*_connect_script(), (0.85, _pd("51 01 FF FF FF FF FF FF")), (2.45, _status())]
 
@@ -334,6 +395,13 @@ def scenarios() -> list[Scenario]:
             "malformed frames, NACKs to others and to the controller (restart), a version\n"
             "request timing out, no language command, an activation refused.",
             {"law": "physical"}, 11.0, script=_scripted_tc),
+        Scenario(
+            "isobus-scripted-tp",
+            "Long groups to the controller: a structure label with an extended label by TP,\n"
+            "the TC aborting the pool transfer, BAMs (one out of order), bad RTSs, packets\n"
+            "out of order, repeated, one per CTS, missing (T2), an unfinished BAM\n"
+            "(T1), a connection replaced and aborted by its sender, a value command by TP.",
+            {"law": "physical"}, 6.0, script=_scripted_tp),
         Scenario(
             "isobus-tc-no-memory",
             "A scripted TC without memory for the pool: refused before the transfer.",
