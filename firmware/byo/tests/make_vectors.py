@@ -44,8 +44,9 @@ VECTORS: dict[str, dict[str, Any]] = {
     "rc400-open-loop.txt": {"mode": "open-loop", "ff_coeff": 4.390},
 }
 SEED = 28
-STEPS = 900
-#: (Program, Run, SpeedSrc) of each 6 s job: every program (1 SpeedRelated, 2 FixedRate,
+JOB_STEPS = 40
+STEPS = 15 * JOB_STEPS
+#: (Program, Run, SpeedSrc) of each 4 s job: every program (1 SpeedRelated, 2 FixedRate,
 #: 3 FixedSpeed, 0 Off) and speed source (1 WheelSensor, 2 TractorWheel, 0 Radar, 3 None)
 JOBS = ((2, 1, 1), (1, 1, 1), (1, 1, 2), (1, 1, 0), (3, 1, 1), (2, 1, 0), (1, 0, 1),
         (0, 1, 2), (1, 1, 3), (2, 0, 2), (1, 1, 2), (3, 1, 0), (2, 1, 3), (1, 1, 1), (2, 1, 1))
@@ -104,8 +105,8 @@ def events(rnd: random.Random) -> Iterator[can.Message | None]:
     speeds = [1.5, 1.6, 1.7]
     silent_until = 0
     for step in range(STEPS):
-        program, run, source = JOBS[step // 60 % len(JOBS)]
-        if step % 60 == 0 and step:                      # a new job every 6 s
+        program, run, source = JOBS[step // JOB_STEPS % len(JOBS)]
+        if step % JOB_STEPS == 0 and step:               # a new job every 4 s
             target = round(rnd.uniform(5.0, 45.0), 2)
             sections = rnd.choice((4, 4, 4, 1, 2, 0, 7))
         if step % 100 == 50:                             # the flow modules fall silent
