@@ -163,7 +163,8 @@ def compact_baseline(doc: Mapping[str, Any], *, created_at: str) -> dict[str, An
     rig = doc.get("rig")
     return {
         "schema": SCHEMA,
-        "dut": {k: v for k, v in doc["dut"].items() if k != "parameters"},
+        "dut": {k: _relative(v) if k == "profile" else v for k, v in doc["dut"].items()
+                if k != "parameters"},
         "rig": rig.get("name") if isinstance(rig, Mapping) else rig,
         "n": summary["judged"],
         "created_at": created_at,
@@ -172,13 +173,27 @@ def compact_baseline(doc: Mapping[str, Any], *, created_at: str) -> dict[str, An
                    "samples_run": len(doc["samples"]), "bus": doc.get("bus"),
                    "clock": doc.get("clock"), "suites": doc.get("suites"),
                    "keyword": doc.get("keyword"),
-                   "dispersion": ({"path": dispersion.get("path"),
+                   "dispersion": ({"path": _relative(dispersion.get("path")),
                                    "sha256": dispersion.get("sha256")}
                                   if isinstance(dispersion, Mapping) else None)},
         "requirement": doc.get("requirement"),
         "summary": {k: summary[k] for k in ("judged", "passed", "failed", "errors", "verdict")},
         "measurements": measurements,
     }
+
+
+def _relative(path: Any) -> Any:
+    """A path inside the project as relative to it (a stored baseline names no machine)."""
+    from pathlib import Path
+
+    from hil.dut.build import PROJECT_ROOT
+
+    if not isinstance(path, str):
+        return path
+    try:
+        return str(Path(path).resolve().relative_to(PROJECT_ROOT.resolve()))
+    except ValueError:
+        return path
 
 
 def is_compact(doc: Any) -> bool:

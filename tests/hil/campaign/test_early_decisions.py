@@ -171,3 +171,23 @@ def test_sprt_takes_samples_in_index_order() -> None:
     with pytest.raises(ValueError):
         decide("curtailed", arrived, 300, None)
     assert decide("fixed", arrived, 300, req).verdict is None
+
+
+def test_sequential_needs_the_profile_to_state_its_test(tmp_path: Path,
+                                                        capsys: pytest.CaptureFixture[str]
+                                                        ) -> None:
+    """Exit 2 naming the profile and the missing key, before any worker starts."""
+    from hil.cli.main import main
+
+    must_fail = ROOT / "dut_profiles/must_fail/fertilizer-no-integral-daemon.toml"
+    reference = ROOT / "dut_profiles/fertilizer-piecewise-pid-daemon.toml"
+    partial = tmp_path / reference.name
+    partial.write_text("\n".join(line for line in reference.read_text().splitlines()
+                                 if not line.startswith("sequential_")) + "\n")
+    for profile, key in ((must_fail, "[campaign]"),
+                         (partial, "[campaign.sequential_good_probability]")):
+        code = main(["campaign", str(profile), "--samples", "5", "--bus", "inline",
+                     "--sequential", "--out", str(tmp_path / "c"), "--no-progress"])
+        err = capsys.readouterr().err
+        assert code == 2 and key in err and str(profile) in err, err
+        assert not (tmp_path / "c").exists()
