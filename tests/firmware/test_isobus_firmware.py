@@ -156,3 +156,70 @@ def test_against_hil_isobus_serve_it_claims_connects_and_meters_the_tcs_rate(
     work_states = [e["value"] for e in log if e["kind"] == "value" and e["address"] == ADDRESS
                    and e["ddi"] == ddi.ACTUAL_WORK_STATE]
     assert work_states and work_states[-1] == 1, work_states
+
+
+# ------------------------------------------------------------------ on the rig
+def _dut_frames(bus_log: Path) -> list[tuple[str, str]]:
+    """(time, frame) of every frame the rig received from the DUT (bus.log's 'R' lines)."""
+    out = []
+    for line in bus_log.read_text().splitlines():
+        parts = line.split()
+        if len(parts) == 4 and parts[3] == "R":
+            out.append((parts[0], parts[2]))
+    return out
+
+
+@pytest.mark.slow
+def test_on_the_rig_in_lockstep_it_sends_what_the_python_mode_sends(
+        isobus_bin: Path, tmp_path: Path) -> None:
+    """The fertilizer rig's isobus-speed-loss scenario (40 s: connection, metering at 8 km/h,
+    the TECU falling silent) with the C firmware on the software bus and with the Python mode
+    in process: every frame the DUT sends, at the same run time, is the same (~20 s)."""
+    python_profile = tmp_path / "fertilizer-piecewise-pid-isobus-inprocess.toml"
+    python_profile.write_text(f'''
+[dut]
+name = "fertilizer-piecewise-pid-isobus-inprocess"
+version = "1.0.0"
+kind = "daemon"
+rig = "fertilizer"
+controller = "piecewise-pid"
+[launch]
+command = ["{{python}}", "-m", "reference_controllers.daemon", "--controller",
+           "fertilizer-piecewise-pid-isobus", "--bus", "{{bus}}", "{{params}}"]
+lockstep_args = ["--sync"]
+realtime_args = ["--period-ms", "100"]
+inprocess = "reference_controllers.inprocess:fertilizer_piecewise_pid_isobus"
+ready = "bootup"
+[wiring]
+node_id = 0x10
+command_ids = [0x220]
+database = "{ROOT / 'plant_emulators' / 'fertilizer' / 'db' / 'fertilizer.dbc'}"
+[timing]
+control_period_ms = 100
+heartbeat_period_ms = 100
+[parameters]
+mode = "physical"
+ff_coeff = 4.390
+[rig]
+flow_sensor = {{ mode = "sliding" }}
+''')
+    runs = {}
+    for name, profile, bus in (
+            ("c", ROOT / "dut_profiles" / "fertilizer-piecewise-pid-isobus-firmware.toml",
+             "softbus"),
+            ("python", python_profile, "inline")):
+        out = tmp_path / name
+        done = subprocess.run([HIL, "run", "--dut", str(profile), "--scenario",
+                               "isobus-speed-loss", "--bus", bus, "--out", str(out)],
+                              capture_output=True, text=True, timeout=300, cwd=ROOT)
+        assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+        runs[name] = _dut_frames(out / "bus.log")
+    c, python = runs["c"], runs["python"]
+    assert len(c) > 1000
+    first = next((i for i, (a, b) in enumerate(zip(c, python, strict=False)) if a != b), None)
+    assert first is None and len(c) == len(python), (
+        f"first difference at DUT frame {first}: C {c[first:first + 3] if first else c[-3:]}, "
+        f"Python {python[first:first + 3] if first else python[-3:]}")
+    volts = [int(f.split("#")[1][2:4] + f.split("#")[1][:2], 16) for _, f in c
+             if f.startswith("220#")]
+    assert max(volts) > 0 and volts[-1] == 0      # it metered, and stopped without speed
