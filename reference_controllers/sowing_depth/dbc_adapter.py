@@ -26,7 +26,8 @@ Fault (:attr:`DbcDepthController.config_error` says which object and code). Ever
 sends is either an answer to the drive's boot-up or part of a control step, as lockstep asks.
 
 The control law, its parameters and its step order are the reference's
-(:class:`reference_controllers.sowing_depth.adapter.DepthController`): the fuzzy PID, the
+(:class:`reference_controllers.sowing_depth.depth_law.DepthLaw`, the rules of
+:class:`reference_controllers.sowing_depth.adapter.DepthController`): the fuzzy PID, the
 frozen-inclinometer check, the roller hold, the ground speed sources (GBSD and the GNSS port).
 """
 
@@ -43,29 +44,15 @@ import can
 import cantools
 
 from hil.dut import Controller
-from plant_emulators.sowing_depth.sensors import calibration_depth_mm
 from reference_controllers.params import ParamError, ParamValue
-from reference_controllers.sowing_depth.adapter import (
-    DEPTH_FILTER,
-    GNSS_PORT_ENV,
-    MAX_VALID_SPEED_MPS,
-    resolve_params,
-)
-from reference_controllers.sowing_depth.cia402_master import (
-    MODE_PROFILE_VELOCITY,
-    is_fault,
-    is_operation_enabled,
-    next_controlword,
-)
+from reference_controllers.sowing_depth.cia402_master import MODE_PROFILE_VELOCITY
+from reference_controllers.sowing_depth.depth_law import DepthLaw, LawStep
 from reference_controllers.sowing_depth.drive_config import (
     PdoConfig,
     SdoBatch,
     check_against_database,
     configuration_writes,
 )
-from reference_controllers.sowing_depth.fuzzy_pid import FuzzyPid
-from reference_controllers.sowing_depth.ground_speed import NmeaPort, SpeedSources
-from reference_controllers.sowing_depth.roller_hold import RollerHold
 
 __all__ = ["DP200_DATABASE", "DP200_DRIVE_PDOS", "DP200_SIGNALS", "DbcDepthController",
            "DepthSignalMap", "dp200"]
@@ -219,15 +206,11 @@ class DbcDepthController(Controller):
     def __init__(self, database: str | Path, signals: DepthSignalMap,
                  params: Mapping[str, ParamValue] | None = None, *,
                  step_on_sync: bool = True) -> None:
-        self.core_params, self.adapter_params = resolve_params(params)
+        self.law = DepthLaw(params)
         self.name = f"sowing-depth-fuzzy-pid ({Path(database).stem})"
         self.map = m = signals
         self.step_on_sync = step_on_sync
         self.db = cantools.database.load_file(str(database))
-        self.core = FuzzyPid(self.core_params)
-        self.hold = RollerHold(self.adapter_params.hold())
-        self.speeds = SpeedSources(self.adapter_params.speed_timeout_s)
-        self.gnss: NmeaPort | None = None
         msg = self.db.get_message_by_name
         self._setpoint = msg(_split(m.target_depth)[0])
         self._sensors = msg(m.sensor_message)
@@ -258,39 +241,19 @@ class DbcDepthController(Controller):
         self.configured = False
         self.config_error: str | None = None
         self.drive_nmt: int | None = None
-        self.statusword = 0
+        #: the drive's last error code (0x603F), from its diagnosis PDO
         self.drive_error = 0
-        self.position_mm: float | None = None
-        self.holding = False
-        self.last_controlword = 0
-        self.target_mm = 30.0
-        self.terminal_on = False
-        self.automatic = False
-        self.manual = False
-        self.depth_mm: float | None = None
-        self.depth_ok = False
-        self.last_x_mv: float | None = None
-        self.x_changed_at_s = 0.0
-        self.steps = 0
-        self.speed_mm_s = 0.0
 
     # --- set-up ---------------------------------------------------------------------------
     def configure(self, env: dict[str, str]) -> None:
         """Open the GNSS serial port the rig names in ``AGRIHIL_GNSS_PORT``, if any."""
-        path = env.get(GNSS_PORT_ENV)
-        if path and self.gnss is None:
-            self.gnss = NmeaPort(path)
+        self.law.configure(env)
 
     def close(self) -> None:
-        if self.gnss is not None:
-            self.gnss.close()
+        self.law.close()
 
     def on_start(self) -> list[can.Message]:
         return [self._encode(*_split(self.map.heartbeat), BOOT_UP)]
-
-    @property
-    def now_s(self) -> float:
-        return self.steps * self.core_params.period_s
 
     # --- frames in ----------------------------------------------------------------------
     def on_frame(self, msg: can.Message) -> list[can.Message]:
@@ -315,35 +278,20 @@ class DbcDepthController(Controller):
         values = message.decode(data, decode_choices=True)
         if message is self._sensors:
             if str(values[m.sensor_multiplexer]) == m.inclinometer_channel:
-                self._take_inclinometer(values)
+                ok = str(values[m.inclinometer_x_state]) == m.inclinometer_valid
+                self.law.inclinometer(ok, self._incl_x(values) if ok else 0.0)
         elif message is self._setpoint:
-            self.target_mm = self._target(values)
-            self.terminal_on = str(values[_split(m.enable)[1]]) == m.enable_on
             mode = str(values[_split(m.mode)[1]])
-            self.automatic, self.manual = mode == m.mode_automatic, mode == m.mode_manual
+            self.law.set_job(self._target(values),
+                             str(values[_split(m.enable)[1]]) == m.enable_on,
+                             mode == m.mode_automatic, mode == m.mode_manual)
         elif message is self._speed:
-            value = self._ground(values)
-            self.speeds.update("gbsd", value if 0.0 <= value <= MAX_VALID_SPEED_MPS else None,
-                               self.now_s)
+            self.law.ground_speed(self._ground(values))
         elif message is self._feedback:
-            self.statusword = int(values["Statusword"])
-            self.position_mm = self._position(values)
+            self.law.drive_feedback(int(values["Statusword"]), self._position(values))
         elif message is self._diagnosis:
             self.drive_error = int(values["ErrorCode"])
         return []
-
-    def _take_inclinometer(self, values: Mapping[str, Any]) -> None:
-        self.depth_ok = str(values[self.map.inclinometer_x_state]) == \
-            self.map.inclinometer_valid
-        if not self.depth_ok:
-            return
-        x_mv = self._incl_x(values)
-        if x_mv != self.last_x_mv:
-            self.last_x_mv, self.x_changed_at_s = x_mv, self.now_s
-            self.hold.mark()         # a sign of life: the mean so far is trusted
-        depth = calibration_depth_mm(x_mv)
-        self.depth_mm = depth if self.depth_mm is None else (
-            self.depth_mm + DEPTH_FILTER * (depth - self.depth_mm))
 
     # --- the drive's configuration (CANopen master) -------------------------------------------
     def _on_drive_heartbeat(self, state: int) -> list[can.Message]:
@@ -399,47 +347,18 @@ class DbcDepthController(Controller):
         """One free-running control step (a daemon's timer, not SYNC)."""
         return self.step()
 
-    def frozen(self) -> bool:
-        """The inclinometer's X output has not changed for more than ``frozen_after_s``."""
-        limit = self.adapter_params.frozen_after_s
-        return (limit > 0.0 and self.last_x_mv is not None
-                and self.now_s - self.x_changed_at_s > limit + 1e-9)
-
-    def enabled(self) -> bool:
-        speed = self.speeds.speed(self.now_s)
-        return (self.terminal_on and self.automatic and speed is not None
-                and speed >= self.adapter_params.min_speed_mps)
-
     def step(self) -> list[can.Message]:
         """Run the law once; the status and heartbeat when due, the drive command last."""
-        if self.gnss is not None:
-            for value in self.gnss.poll():
-                self.speeds.update("gnss", value, self.now_s)
         out = self._drive_management()
-        controlword = next_controlword(self.statusword, self.last_controlword)
-        self.last_controlword = controlword
-        frozen = self.frozen()
-        drive_on = is_operation_enabled(self.statusword)
-        valid = self.depth_mm is not None and self.depth_ok and not frozen and drive_on
-        enabled = self.enabled()
-        speed, *_ = self.core.step(self.target_mm, self.depth_mm or 0.0, valid, enabled)
-        self.holding = False
-        if enabled and valid:
-            if self.position_mm is not None:
-                self.hold.track(self.position_mm, self.core_params.period_s)
-        elif not enabled:
-            self.hold.reset()
-        elif drive_on and self.position_mm is not None and self.hold.target_mm is not None:
-            self.holding = True
-            speed = self.hold.speed(self.position_mm)
-        self.speed_mm_s = speed
-        if self.steps % self.map.status_every == 0:
-            out.append(self._status_frame(valid and enabled, frozen))
-        if self.steps % self.map.heartbeat_every == 0:
+        step = self.law.step()
+        steps = self.law.steps
+        if steps % self.map.status_every == 0:
+            out.append(self._status_frame(step))
+        if steps % self.map.heartbeat_every == 0:
             out.append(self._encode(*_split(self.map.heartbeat), OPERATIONAL))
         # the command goes last: in lockstep it closes the step
-        out.append(self._drive_command(speed, controlword))
-        self.steps += 1
+        out.append(self._drive_command(step.speed_mm_s, step.controlword))
+        self.law.end_step()
         return out
 
     def _drive_command(self, speed_mm_s: float, controlword: int) -> can.Message:
@@ -449,32 +368,23 @@ class DbcDepthController(Controller):
         return can.Message(arbitration_id=self._command.frame_id, is_extended_id=False,
                            data=data)
 
-    def state(self, controlling: bool) -> str:
-        """The law's state, as the reference's status reports it (a refused configuration
-        is a fault)."""
-        if is_fault(self.statusword) or self.config_error is not None:
-            return "fault"
-        if self.manual:
-            return "manual"
-        if controlling:
-            return "controlling"
-        return "ready" if is_operation_enabled(self.statusword) else "initialising"
+    def state(self, step: LawStep) -> str:
+        """The law's state (a refused configuration is a fault)."""
+        return "fault" if self.config_error is not None else self.law.status(step).state
 
-    def _status_frame(self, controlling: bool, frozen: bool) -> can.Message:
+    def _status_frame(self, step: LawStep) -> can.Message:
         s = self.map.status_signals
-        depth = 0.0 if self.depth_mm is None else min(max(self.depth_mm, -100.0), 200.0)
-        roller = 0.0
-        if self.holding and self.hold.target_mm is not None:
-            roller = min(max(self.hold.target_mm, 0.0), 100.0)
+        status = self.law.status(step)
         depth_sig = self._status.get_signal_by_name(s["depth"])
         roller_sig = self._status.get_signal_by_name(s["roller"])
-        values = {s["depth"]: round(depth, 1) / TO_LAW_UNITS[depth_sig.unit][1],
-                  s["roller"]: roller / TO_LAW_UNITS[roller_sig.unit][1],
-                  s["state"]: self.map.states[self.state(controlling)],
-                  s["sensor_fault"]: int(self.depth_mm is None or not self.depth_ok or frozen),
-                  s["drive_fault"]: int(is_fault(self.statusword)),
-                  s["speed_lost"]: int(self.speeds.speed(self.now_s) is None),
-                  s["counter"]: (self.steps // self.map.status_every) % 16,
+        values = {s["depth"]: status.measured_depth_mm / TO_LAW_UNITS[depth_sig.unit][1],
+                  s["roller"]: status.roller_position_command_mm
+                  / TO_LAW_UNITS[roller_sig.unit][1],
+                  s["state"]: self.map.states[self.state(step)],
+                  s["sensor_fault"]: int(status.sensor_fault),
+                  s["drive_fault"]: int(status.drive_fault),
+                  s["speed_lost"]: int(status.speed_lost),
+                  s["counter"]: (self.law.steps // self.map.status_every) % 16,
                   s["drive_error"]: self.drive_error}
         raw = {name: self._raw_value(name, value) for name, value in values.items()}
         return can.Message(arbitration_id=self._status.frame_id,

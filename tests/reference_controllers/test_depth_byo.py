@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -137,8 +138,11 @@ def test_a_refused_configuration_leaves_the_drive_stopped(tmp_path: Path) -> Non
     assert isinstance(ctl, DbcDepthController)
     assert ctl.config_error is not None
     assert "0x1600:02" in ctl.config_error and "0x06040041" in ctl.config_error
-    assert ctl.state(False) == "fault"
-    assert not [f for f in _bus(tmp_path) if f[1] == 0x000]        # no NMT start
+    frames = _bus(tmp_path)
+    db = cantools.database.load_file(str(DP200_DATABASE))
+    status = [data for _, can_id, data, _ in frames if can_id == 0x18A]
+    assert status and db.decode_message(0x18A, status[-1])["State"] == "Fault"
+    assert not [f for f in frames if f[1] == 0x000]                  # no NMT start
     assert np.ptp(traces["rod_position_mm"]) == 0.0
 
 
@@ -234,6 +238,20 @@ def test_the_generated_binding_is_what_bind_writes(tmp_path: Path) -> None:
                     str(out)], check=True, capture_output=True)
     committed = EXAMPLE / "depthpro_dp200.generated.binding.toml"
     assert out.read_text(encoding="utf-8") == committed.read_text(encoding="utf-8")
+
+
+def test_the_readme_quotes_the_check() -> None:
+    """The README quotes what ``hil profile check`` says of the unedited binding, line for line
+    (paths shortened to ``…``), so a change of the check or of ``hil profile bind`` shows."""
+    readme = (EXAMPLE / "README.md").read_text(encoding="utf-8")
+    quoted = readme.split("```text\n", 1)[1].split("```", 1)[0].splitlines()
+    done = subprocess.run([HIL, "profile", "check",
+                           str(EXAMPLE / "depthpro-dp200-first-try.toml")],
+                          capture_output=True, text=True, cwd=REPO)
+    assert done.returncode == 2, done.stderr
+    said = [re.sub(r"\S*depthpro[-_]dp200[.-]", "…", line)
+            for line in (done.stdout + done.stderr).splitlines() if line.startswith("hil: ")]
+    assert said == quoted
 
 
 def _measurements(record: Path) -> dict[tuple[str, str], float]:
