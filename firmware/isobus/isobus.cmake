@@ -18,7 +18,8 @@ if(BUILD_TESTING)
   # the shared vectors of the Python build: every frame the C controller sends must be the
   # Python controller's, byte for byte, in order
   set(ISOBUS_VECTORS isobus-drive.frames isobus-refused.frames isobus-contention.frames
-      isobus-scripted-tc.frames isobus-scripted-tp.frames isobus-tc-no-memory.frames)
+      isobus-scripted-tc.frames isobus-scripted-tp.frames isobus-scripted-claims.frames
+      isobus-scripted-transfers.frames isobus-scripted-eoma.frames isobus-tc-no-memory.frames)
   set(ISOBUS_VECTOR_PATHS)
   foreach(v ${ISOBUS_VECTORS})
     list(APPEND ISOBUS_VECTOR_PATHS ${AGRIHIL_VECTORS_DIR}/${v})

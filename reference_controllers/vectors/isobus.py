@@ -37,6 +37,8 @@ Scenarios:
   elements, DDIs, values and triggers, malformed frames, NACKs to others and to the
   controller, a version request timing out, no language command, an activation refused;
 * ``isobus-scripted-tp``: long groups to the controller by TP and BAM, good and bad;
+* ``isobus-scripted-claims``, ``-transfers``, ``-eoma``: cannot-claim, a version 3 TC, TP
+  sending's hold, timeouts, retransmission limit and end-of-message acknowledgement;
 * ``isobus-tc-no-memory``: a scripted TC without memory for the pool.
 """
 
@@ -345,6 +347,59 @@ def _scripted_tp() -> list[tuple[float, can.Message]]:
     ]
 
 
+def _claim(address: int, name: int) -> can.Message:
+    return _frame(6, 0xEE00, address, 0xFF, name.to_bytes(8, "little").hex())
+
+
+def _scripted_claims() -> list[tuple[float, can.Message]]:
+    """Every self-configurable address taken, then a lower NAME takes the controller's."""
+    taken = [(0.45, _claim(a, 0x1000 + a)) for a in range(128, 248) if a != ME]
+    return [
+        *taken,
+        (0.55, _claim(0x90, 0x2000)),              # a NAME moves: 0x90's old holder is gone
+        (0.65, _claim(0x90, 0x1090)),              # and claims it back
+        (0.75, _claim(ME, 0xFFFF_FFFF_FFFF_FFFF)),  # a higher NAME: defended
+        (0.85, _claim(ME, 0x0000_0000_0000_0001)),  # a lower one: no free address, cannot claim
+        (0.95, _frame(6, 0xEA00, 0x80, 0xFF, "00EE00")),   # answered from 0xFE
+        (1.05, _frame(6, 0xEA00, 0x80, ME, "00EE00")),     # not its address any more
+        (1.15, _status()),                                 # no address: no connection
+    ]
+
+
+def _scripted_transfers() -> list[tuple[float, can.Message]]:
+    """A version 3 TC; a held transfer that times out (T4); retransmissions beyond the
+    limit (abort 5); a transfer that ends with the end-of-message acknowledgement."""
+    v3 = "10 03 FF 15 00 01 10 00"
+    again = [
+        (12.45, _status()), (12.55, _pd(v3)),
+        (12.65, _frame(6, 0xFE0F, TC, 0xFF, "656E000000000000")),
+        (12.75, _pd("11 FF FF FF FF FF FF FF")), (12.85, _pd("51 00 FF FF FF FF FF FF")),
+    ]
+    return [
+        (0.45, _status()), (0.55, _pd(v3)),
+        (0.65, _frame(6, 0xFE0F, TC, 0xFF, "656E000000000000")),
+        (0.75, _pd("11 FF FF FF FF FF FF FF")), (0.85, _pd("51 00 FF FF FF FF FF FF")),
+        (0.95, _cts(0, 1)),                                 # hold, then nothing: T4
+        (2.45, _status()), (4.45, _status()), (6.45, _status()), (8.45, _status()),
+        (10.45, _status()),                                 # the transfer response times out
+        *again,
+        (12.95, _cts(4, 1)), (13.05, _cts(4, 1)), (13.15, _cts(4, 1)), (13.25, _cts(4, 1)),
+        (14.45, _status()),
+        (14.55, _pd("71 01 00 00 00 00 FF FF")),            # transfer response: no memory
+    ]
+
+
+def _scripted_eoma() -> list[tuple[float, can.Message]]:
+    """The whole pool, 124 packets in windows of 255 and 16, acknowledged, activated."""
+    return [
+        *_connect_script(), (0.85, _pd("51 00 FF FF FF FF FF FF")),
+        (0.95, _cts(100, 1)), (1.05, _cts(24, 101)),
+        (1.15, _tp(TC, ME, "13 5F 03 7C FF 00 CB 00")),     # end of message
+        (1.25, _pd("71 00 5F 03 00 00 FF FF")), (1.35, _pd("91 00 FF FF FF FF 00 FF")),
+        (2.45, _status()),
+    ]
+
+
 def _scripted_no_memory() -> list[tuple[float, can.Message]]:
     return [*_connect_script(), (0.85, _pd("51 01 FF FF FF FF FF FF")), (2.45, _status())]
 
@@ -402,6 +457,21 @@ def scenarios() -> list[Scenario]:
             "out of order, repeated, one per CTS, missing (T2), an unfinished BAM\n"
             "(T1), a connection replaced and aborted by its sender, a value command by TP.",
             {"law": "physical"}, 6.0, script=_scripted_tp),
+        Scenario(
+            "isobus-scripted-claims",
+            "Every self-configurable address taken by others, a NAME moving, a higher NAME\n"
+            "defended, a lower one taking the controller's address: cannot claim (0xFE).",
+            {"law": "physical"}, 2.0, script=_scripted_claims),
+        Scenario(
+            "isobus-scripted-transfers",
+            "A version 3 TC (the pool without the extended structure label); a held transfer\n"
+            "timing out (T4, abort 3), the transfer response timing out (10 s); a second\n"
+            "attempt asked for the same packets four times (abort 5); no memory after all.",
+            {"law": "physical"}, 15.0, script=_scripted_transfers),
+        Scenario(
+            "isobus-scripted-eoma",
+            "The whole pool in two CTS windows, the end-of-message acknowledgement, activation.",
+            {"law": "physical"}, 3.0, script=_scripted_eoma),
         Scenario(
             "isobus-tc-no-memory",
             "A scripted TC without memory for the pool: refused before the transfer.",
