@@ -38,6 +38,30 @@ if(BUILD_TESTING)
            COMMAND sh ${CLI} 2 "no-such.frames: missing"
                    $<TARGET_FILE:replay_isobus> ${ISOBUS_DIR}/data/no-such.frames)
 
+  # command line: agrihil-fertilizer-fw's contract, with the ISOBUS parameters by the Python's
+  # names (exit 2 naming a bad argument, 1 naming the bus that failed)
+  set(ISOFW $<TARGET_FILE:agrihil-fertilizer-isobus-fw>)
+  add_test(NAME isobus_cli_params_accepted
+           COMMAND sh ${CLI} 1 "127.0.0.1:9" ${ISOFW} --bus socketcand:127.0.0.1:9
+                   --param mode=physical --param ff_coeff=4.39 --param address=129
+                   --param identity_number=3879 --param width_m=3.0 --param speed=wheel
+                   --param ddop=broken)
+  add_test(NAME isobus_cli_bad_speed COMMAND sh ${CLI} 2 "parameter 'speed' must be ground or wheel"
+           ${ISOFW} --bus socketcand:127.0.0.1:9 --param speed=radar)
+  add_test(NAME isobus_cli_bad_ddop COMMAND sh ${CLI} 2 "parameter 'ddop' must be valid or broken"
+           ${ISOFW} --bus socketcand:127.0.0.1:9 --param ddop=odd)
+  add_test(NAME isobus_cli_bad_address COMMAND sh ${CLI} 2 "address must be an integer 0 .. 253"
+           ${ISOFW} --bus socketcand:127.0.0.1:9 --param address=254)
+  add_test(NAME isobus_cli_bad_width COMMAND sh ${CLI} 2 "width_m must be within (0, 30] m"
+           ${ISOFW} --bus socketcand:127.0.0.1:9 --param width_m=0)
+  add_test(NAME isobus_cli_bad_identity COMMAND sh ${CLI} 2 "identity_number must be an integer below 2^21"
+           ${ISOFW} --bus socketcand:127.0.0.1:9 --param identity_number=2097152)
+  add_test(NAME isobus_cli_unknown_param COMMAND sh ${CLI} 2 "unknown parameter 'gain'"
+           ${ISOFW} --bus socketcand:127.0.0.1:9 --param gain=1)
+  add_test(NAME isobus_cli_no_open_loop COMMAND sh ${CLI} 2 "unknown law 'open-loop'"
+           ${ISOFW} --bus socketcand:127.0.0.1:9 --law open-loop)
+  add_test(NAME isobus_cli_help COMMAND sh ${CLI} 0 "--param KEY=VALUE" ${ISOFW} --help)
+
   # the DDOP bytes: the C writer against the Python's meter_pool(), versions 4 and 3
   add_executable(test_iso_ddop ${ISOBUS_DIR}/test_iso_ddop.c)
   target_link_libraries(test_iso_ddop PRIVATE agrihil_isobus)

@@ -389,14 +389,32 @@ def _scripted_transfers() -> list[tuple[float, can.Message]]:
     ]
 
 
+def _wheel_speed(mps: float) -> can.Message:
+    raw = round(mps * 1000)
+    return _frame(3, 0xFE48, TECU, 0xFF, f"{raw & 0xFF:02X}{raw >> 8:02X}0000000000FD")
+
+
 def _scripted_eoma() -> list[tuple[float, can.Message]]:
-    """The whole pool, 124 packets in windows of 255 and 16, acknowledged, activated."""
+    """The whole pool, 124 packets in windows of 100 and 24, acknowledged, activated; then
+    metering on ground-based speed, on wheel-based speed while the ground-based one is stale,
+    section states 2 and 3 (rows off), the boom stopped and started."""
     return [
         *_connect_script(), (0.85, _pd("51 00 FF FF FF FF FF FF")),
         (0.95, _cts(100, 1)), (1.05, _cts(24, 101)),
         (1.15, _tp(TC, ME, "13 5F 03 7C FF 00 CB 00")),     # end of message
         (1.25, _pd("71 00 5F 03 00 00 FF FF")), (1.35, _pd("91 00 FF FF FF FF 00 FF")),
+        (1.45, _pd(_element(0x3, 1, 6, 20000))),            # 200 kg/ha
+        (1.45, _pd(_element(0x8, 1, 7, 1))),                 # actual rate on change
+        *[(1.55 + 0.1 * k, _speed(1.5)) for k in range(10)],
+        *[(1.57 + 0.1 * k, _wheel_speed(2.0)) for k in range(30)],
         (2.45, _status()),
+        (3.05, _frame(3, 0xFE49, TECU, 0xFF, "FFFFFFFFFFFFFFFF")),   # not available
+        (3.15, _frame(3, 0xFE49, TECU, 0xFF, "E8030000000000")),     # 7 bytes: not a speed
+        (3.25, _pd(_element(0x3, 1, 290, 0xFFFFFF79))),      # rows: on, error, not inst., on
+        (3.55, _pd(_element(0x3, 1, 289, 0))),               # the boom stopped
+        (3.85, _pd(_element(0x3, 1, 289, 1))),
+        *[(3.95 + 0.1 * k, _speed(1.0)) for k in range(5)],
+        (4.45, _status()),
     ]
 
 
@@ -470,8 +488,11 @@ def scenarios() -> list[Scenario]:
             {"law": "physical"}, 15.0, script=_scripted_transfers),
         Scenario(
             "isobus-scripted-eoma",
-            "The whole pool in two CTS windows, the end-of-message acknowledgement, activation.",
-            {"law": "physical"}, 3.0, script=_scripted_eoma),
+            "The whole pool in two CTS windows, the end-of-message acknowledgement, activation;\n"
+            "metering on ground-based speed, then wheel-based while the ground-based one is\n"
+            "stale (a 'not available' and a short frame ignored), sections in states 2 and 3,\n"
+            "the boom stopped and started.",
+            {"law": "physical"}, 5.0, script=_scripted_eoma),
         Scenario(
             "isobus-tc-no-memory",
             "A scripted TC without memory for the pool: refused before the transfer.",
