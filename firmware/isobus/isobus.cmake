@@ -12,9 +12,14 @@ target_link_libraries(agrihil_isobus PUBLIC agrihil_adapters)
 add_executable(agrihil-fertilizer-isobus-fw ${ISOBUS_DIR}/isobus_main.c)
 target_link_libraries(agrihil-fertilizer-isobus-fw PRIVATE agrihil_isobus agrihil_app)
 
+# the vector replay and the DDOP check are targets even without BUILD_TESTING: the pytest
+# suite (tests/firmware/test_isobus_firmware.py) builds and runs them too, as CI runs pytest
+add_executable(replay_isobus ${ISOBUS_DIR}/replay_isobus.c)
+target_link_libraries(replay_isobus PRIVATE agrihil_isobus)
+add_executable(test_iso_ddop ${ISOBUS_DIR}/test_iso_ddop.c)
+target_link_libraries(test_iso_ddop PRIVATE agrihil_isobus)
+
 if(BUILD_TESTING)
-  add_executable(replay_isobus ${ISOBUS_DIR}/replay_isobus.c)
-  target_link_libraries(replay_isobus PRIVATE agrihil_isobus)
   # the shared vectors of the Python build: every frame the C controller sends must be the
   # Python controller's, byte for byte, in order
   set(ISOBUS_VECTORS isobus-drive.frames isobus-refused.frames isobus-contention.frames
@@ -63,7 +68,5 @@ if(BUILD_TESTING)
   add_test(NAME isobus_cli_help COMMAND sh ${CLI} 0 "--param KEY=VALUE" ${ISOFW} --help)
 
   # the DDOP bytes: the C writer against the Python's meter_pool(), versions 4 and 3
-  add_executable(test_iso_ddop ${ISOBUS_DIR}/test_iso_ddop.c)
-  target_link_libraries(test_iso_ddop PRIVATE agrihil_isobus)
   add_test(NAME isobus_ddop COMMAND test_iso_ddop ${AGRIHIL_VECTORS_DIR}/isobus-ddop.txt)
 endif()

@@ -41,17 +41,20 @@ ADDRESS = 0x81
 TC_ADDRESS = 0xF7
 
 
+TARGETS = (APP, "replay_isobus", "test_iso_ddop")
+
+
 @pytest.fixture(scope="module")
 def isobus_bin(firmware_bin: Path) -> Path:
-    """The ISOBUS program, built in the firmware tests' cached build directory."""
-    app = firmware_bin / APP
+    """The ISOBUS program (and the replay and DDOP check beside it), built in the firmware
+    tests' cached build directory."""
     with (firmware_bin.parent / f"{firmware_bin.name}.lock").open("w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
-        if not app.exists():
-            done = subprocess.run(["cmake", "--build", str(firmware_bin), "-j2", "--target", APP],
-                                  capture_output=True, text=True, timeout=300)
+        if not all((firmware_bin / t).exists() for t in TARGETS):
+            done = subprocess.run(["cmake", "--build", str(firmware_bin), "-j2", "--target",
+                                   *TARGETS], capture_output=True, text=True, timeout=300)
             assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
-    return app
+    return firmware_bin / APP
 
 
 # ------------------------------------------------------------------ the shared vectors
@@ -76,6 +79,20 @@ def test_the_committed_vectors_are_what_the_python_controller_sends(scenario) ->
 
 def test_the_committed_ddop_vector_is_the_python_pool() -> None:
     assert (VECTOR_DIR / DDOP_FILE).read_text().splitlines() == ddop_lines()
+
+
+def test_the_c_build_sends_the_vectors_frames_byte_for_byte(isobus_bin: Path) -> None:
+    """What ctest's isobus_vectors and isobus_ddop do, in the pytest run CI makes."""
+    vectors = sorted(VECTOR_DIR.glob(f"isobus-*{SUFFIX}"))
+    assert {p.stem for p in vectors} == {s.name for s in scenarios()}
+    done = subprocess.run([str(isobus_bin.with_name("replay_isobus")), *map(str, vectors)],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert done.stdout.count(": identical") == len(vectors), done.stdout
+    done = subprocess.run([str(isobus_bin.with_name("test_iso_ddop")),
+                           str(VECTOR_DIR / DDOP_FILE)], capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 0 and "18 pools identical" in done.stdout, done.stdout + done.stderr
 
 
 # ------------------------------------------------------------------ end to end
