@@ -8,6 +8,8 @@ import math
 from collections.abc import Iterable
 from typing import Any
 
+from hil.limits import is_conformance as conformance_name
+
 #: the summary lists at most this many failed measurements (the record has them all)
 SUMMARY_ROWS = 15
 
@@ -50,8 +52,9 @@ def measurement_line(m: dict[str, Any]) -> str:
 
 
 def is_conformance(m: dict[str, Any]) -> bool:
-    """A bus conformance check (``bus.*``), recorded for every run of a qualification."""
-    return str(m.get("name", "")).startswith("bus.")
+    """A bus conformance check (``bus.*``, ``isobus.claim.*`` ...:
+    :func:`hil.limits.is_conformance`), recorded for every run of a qualification."""
+    return conformance_name(str(m.get("name", "")))
 
 
 def conformance_line(measurements: Iterable[dict[str, Any]]) -> str:

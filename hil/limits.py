@@ -49,6 +49,57 @@ _SENSED_RESPONSE_LIMIT_S = 3.5
 _TRUE_STEADY_STATE_LIMIT_PCT = 2.2
 
 
+#: isobus.connect.time_to_active, from ISO 11783-5, -3 and -10: what a client that answers every
+#: message within Tr (200 ms, ISO 11783-3) needs from power-up to an active pool. Its address
+#: claim and the 250 ms after it; the TC's status, sent every 2 s, which it waits for (up to 2 s);
+#: then one exchange each within Tr: working-set master, version both ways, structure and
+#: localization labels, the request for the pool transfer, and the activation (6 x 0.2 s); and
+#: the transfer: a TP pool (up to 1,785 bytes, 255 packets) in the TC's windows of 16 packets
+#: per CTS, each window answered within Tr (16 x 0.2 s). 0.25 + 2 + 1.2 + 3.2 = 6.65 s -> 7 s.
+#: (The reference: 1.6 s.)
+_TIME_TO_ACTIVE_LIMIT_S = 7.0
+
+#: isobus.field.rate_accuracy, from [F]: the field accuracy of eq. 15 (>= 97.5 %) applied to the
+#: mass laid per area on each zone of the map, at steady speed, away from the zone's boundaries
+#: (isobus.zone.transition_distance judges those) and from the speed changes
+#: (flow.field.transient_lag). Same physics, same budget: a controller that meets [F] on the
+#: terminal's field runs meets it under the map.
+_RATE_ACCURACY_LIMIT_PCT = 97.5
+
+#: isobus.zone.transition_distance, from [F] and ISO 11783-10: the TC sends the new rate ahead
+#: by the set-point latency the implement declares (DDI 142), which covers the meter-to-furrow
+#: transport; what is left is the controller's own response, [F]'s 1.5 s, at the field runs'
+#: 6 km/h: 1.5 s x 1.667 m/s = 2.5 m from the boundary (under the openers' middle) to where the
+#: rate laid (1 s means) stays within 5 % of the new rate for 2 m. (The reference: <= 1.0 m.)
+_TRANSITION_LIMIT_M = 2.5
+
+#: isobus.section.switch_error, from ISO 11783-10 TC-SC: the TC switches a section ahead by the
+#: turn-on/turn-off times the implement declares (DDI 205/206), which cover the transport; what
+#: is left is three 100 ms steps: the TC's coverage check, the implement's control step that acts
+#: on the command, the one in which it reports the new state (which moves the rig's clutch):
+#: 0.3 s x 1.667 m/s = 0.5 m early or late, per switch. (The reference: <= 0.17 m.)
+_SWITCH_ERROR_LIMIT_M = 0.5
+
+#: isobus.tc.loss.delivered and isobus.tc.refused.delivered, from ISO 11783-10: without an active
+#: pool (the TC refused it, or has been silent for the 6 s after which a client must consider it
+#: lost) there is neither a rate set-point nor section control; the reference stops metering
+#: (reference_controllers/fertilizer/isobus_mode.py says why). The limit is what lands in
+#: 0.1 s (one control period) at the field runs' 200 kg/ha, 3 m, 6 km/h:
+#: 0.1 x 0.1 x 200 x 3 x 1.667 = 10 g.
+_NO_TC_DELIVERY_LIMIT_G = 10.0
+
+#: isobus.tecu.speed_loss.overapplication, from ISO 11783-7 and [F]: once the TECU's speed is lost
+#: (its 100 ms messages missing for 3 cycles), a controller must not keep metering for a speed it
+#: no longer knows; stopping, or a speed of its own (a ground wheel), is right. The limit: [F]'s
+#: field budget (2.5 %) plus a ground wheel's slip (papers.md: up to ~5 % on loose soil), 10 %
+#: rounded up; holding the last speed through the run's slowdown from 8 to 3 km/h reads 167 %.
+_SPEED_LOSS_OVERAPPLICATION_LIMIT_PCT = 10.0
+
+#: isobus.tc.restart.reconnect_time: from the TC's return to the pool active again, the same
+#: exchanges as at power-up without the address claim: the time_to_active limit.
+_RECONNECT_LIMIT_S = _TIME_TO_ACTIVE_LIMIT_S
+
+
 #: depth.step.true_steady_state_error, from [D] and the rig's physics. The true depth of a
 #: settled step differs from the sensed one by the sensing chain's bias, which no controller
 #: sees (the post-press roller on the clods, eq. 13's line against the arm's arc, the
@@ -153,6 +204,51 @@ _SPECS = (
                     "pass rate of a field run on a bus loaded near its bit rate"),
     MeasurementSpec("depth.busload.inlier_cv", "%", "sowing_depth",
                     "CV of the in-band seeds of a field run on a bus loaded near its bit rate"),
+    # ISOBUS implements on the fertilizer rig: field runs under its Task Controller (issue 27)
+    MeasurementSpec("isobus.connect.time_to_active", "s", "fertilizer",
+                    "power-up to the implement's pool active on the rig's TC",
+                    high=_TIME_TO_ACTIVE_LIMIT_S),
+    MeasurementSpec("isobus.field.rate_accuracy", "%", "fertilizer",
+                    "100 - |laid - prescribed| / prescribed (%) per zone of the map, mass per "
+                    "area at steady speed away from the zone's boundaries; condition zone",
+                    low=_RATE_ACCURACY_LIMIT_PCT),
+    MeasurementSpec("isobus.zone.transition_distance", "m", "fertilizer",
+                    "from a zone boundary to where the rate laid stays within 5 % of the new "
+                    "rate (worst boundary of the run)", high=_TRANSITION_LIMIT_M),
+    MeasurementSpec("isobus.section.switch_error", "m", "fertilizer",
+                    "worst section switch position error (early or late) against where the "
+                    "ground needed applying; condition kind (headland, coverage)",
+                    high=_SWITCH_ERROR_LIMIT_M),
+    MeasurementSpec("isobus.tc.restart.reconnect_time", "s", "fertilizer",
+                    "the TC back after a restart mid-field to the pool active again",
+                    high=_RECONNECT_LIMIT_S),
+    MeasurementSpec("isobus.tc.loss.delivered", "g", "fertilizer",
+                    "fertilizer laid while the TC was gone, from 6 s after it fell silent "
+                    "(the client's timeout) plus the transport, until it was back",
+                    high=_NO_TC_DELIVERY_LIMIT_G),
+    MeasurementSpec("isobus.tc.refused.delivered", "g", "fertilizer",
+                    "fertilizer laid in a run whose TC refused the implement's pool",
+                    high=_NO_TC_DELIVERY_LIMIT_G),
+    MeasurementSpec("isobus.tecu.speed_loss.overapplication", "%", "fertilizer",
+                    "fertilizer laid beyond the map from 1 s after the TECU's speed was lost, "
+                    "in % of what the map prescribed there",
+                    high=_SPEED_LOSS_OVERAPPLICATION_LIMIT_PCT),
+    # ISOBUS bus conformance of an ISOBUS DUT, every run (hil/conformance/isobus.py)
+    MeasurementSpec("isobus.claim.frames_before", "frames", "*",
+                    "frames the DUT sent from an address before claiming it or within the "
+                    "250 ms after (ISO 11783-5)", default_rule="<= 0"),
+    MeasurementSpec("isobus.claim.request_answered", "requests", "*",
+                    "requests for address claimed the DUT left unanswered for Tr = 200 ms",
+                    default_rule="<= 0"),
+    MeasurementSpec("isobus.claim.contention", "frames", "*",
+                    "frames the DUT sent from an address after a lower NAME claimed it",
+                    default_rule="<= 0"),
+    MeasurementSpec("isobus.transport.violations", "violations", "*",
+                    "TP/ETP protocol errors of the DUT as sender or receiver (ISO 11783-3)",
+                    default_rule="<= 0"),
+    MeasurementSpec("isobus.pgn.rate", "%", "*",
+                    "median period of a cyclic PGN the DUT sends, off its standard period",
+                    default_rule=">= -10, <= 10 (% of the period ISO 11783 gives), per PGN"),
     # both rigs
     MeasurementSpec("rig.timing.lateness_p99", "us", "*",
                     "99th percentile of the rig's period lateness (real time only)"),
@@ -198,6 +294,15 @@ _SPECS = (
 )
 
 MEASUREMENTS: dict[str, MeasurementSpec] = {spec.name: spec for spec in _SPECS}
+
+#: the bus conformance checks, recorded for every run (CANopen and ISOBUS); the rest are the
+#: suites' control measurements
+CONFORMANCE_PREFIXES = ("bus.", "isobus.claim.", "isobus.transport.", "isobus.pgn.")
+
+
+def is_conformance(name: str) -> bool:
+    """Whether ``name`` is a bus conformance check rather than a control measurement."""
+    return name.startswith(CONFORMANCE_PREFIXES)
 
 
 def measurement_names(rig: str) -> list[str]:

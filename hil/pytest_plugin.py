@@ -60,7 +60,10 @@ from hil.rig import Rig, RunOptions, RunResult, load_rig, run_scenario
 from hil.rig.scenario import Scenario
 from hil.validation import CLI_RANGES
 
-SUITES = ("fast", "full", "robustness", "busload")
+SUITES = ("fast", "full", "robustness", "busload", "isobus")
+#: the suite of ISOBUS implements ([wiring] isobus = true): field runs under the rig's Task
+#: Controller; the other suites give the set-point by the rig's own frames
+ISOBUS_SUITE = "isobus"
 SCHEMA = "agrihil.qualification/1"
 
 
@@ -220,9 +223,24 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             if want != have:
                 item.add_marker(pytest.mark.skip(
                     reason=f"a {want} suite; the DUT {session.profile.name} drives the {have} rig"))
+            elif suite_mark is not None:
+                why = _interface_mismatch(suite_mark.args[0], session.profile)
+                if why:
+                    item.add_marker(pytest.mark.skip(reason=why))
     if deselected:
         config.hook.pytest_deselected(items=deselected)
         items[:] = [item for item in items if item not in deselected]
+
+
+def _interface_mismatch(suite: str, profile: DutProfile) -> str:
+    """Why a rig test of ``suite`` cannot judge the DUT of ``profile`` ("" if it can)."""
+    if profile.wiring.isobus and suite != ISOBUS_SUITE:
+        return (f"a {suite} test gives the set-point by the rig's own frames; the DUT "
+                f"{profile.name} is an ISOBUS implement (its suite: {ISOBUS_SUITE})")
+    if suite == ISOBUS_SUITE and not profile.wiring.isobus:
+        return (f"an {ISOBUS_SUITE} test (a field run under the rig's Task Controller); the "
+                f"DUT {profile.name} is not an ISOBUS implement ([wiring] isobus = false)")
+    return ""
 
 
 def _wanted_suites(option: str) -> set[str]:

@@ -44,6 +44,9 @@ from hil.record.atomic import write_json_atomic
 from hil.record.staging import Staging, signals_held
 
 DEFAULT_SUITES = "fast,robustness"
+#: an ISOBUS implement ([wiring] isobus = true) takes its rate from the rig's Task Controller:
+#: its qualification is the isobus suite (the others give the set-point by FertSetpoint)
+DEFAULT_ISOBUS_SUITES = "isobus"
 EXIT_BY_VERDICT = {"pass": 0, "fail": 1, "interrupted": 130}
 #: what a qualification writes into --out (moved in from the staging directory, record last)
 OUTPUTS = ("runs", "junit.xml", "report.html")
@@ -55,10 +58,12 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
     qualify = subparsers.add_parser("qualify", help="qualify a DUT and write its report")
     qualify.add_argument("profile", help="DUT profile (TOML)")
     add_bus_clock(qualify)
-    qualify.add_argument("--suite", default=DEFAULT_SUITES,
+    qualify.add_argument("--suite", default=None,
                          help=f"comma-separated suites: fast, full (the papers' 3 repeats), "
                               f"robustness, busload (real time on a bus loaded near its "
-                              f"bit rate, ~1 min), all (default: {DEFAULT_SUITES})")
+                              f"bit rate, ~1 min), isobus (field runs under the rig's Task "
+                              f"Controller), all (default: {DEFAULT_SUITES}; "
+                              f"{DEFAULT_ISOBUS_SUITES} for an ISOBUS implement)")
     qualify.add_argument("--out", default="out", help="output directory (default: out)")
     qualify.add_argument("--seed", type=int, default=None,
                          help="added to every scenario's seed (default: 0)")
@@ -74,6 +79,11 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
                               "of the profile's [rig]; repeatable. `hil campaign` prints these "
                               "for each sample it reruns")
     qualify.set_defaults(func=_qualify)
+
+
+def default_suites(profile: DutProfile) -> str:
+    """The suites a profile is qualified on when ``--suite`` is not given."""
+    return DEFAULT_ISOBUS_SUITES if profile.wiring.isobus else DEFAULT_SUITES
 
 
 def check_suites(text: str) -> list[str]:
@@ -120,7 +130,8 @@ def interrupted_record(profile: DutProfile, args: argparse.Namespace, *, run_id:
             "note": note,
             "dut": {**profile.identity(), "parameters": profile.parameters},
             "rig": {"name": profile.dut.rig}, "bus": args.bus, "clock": args.clock,
-            "seed": args.seed, "suites": check_suites(args.suite), "versions": {},
+            "seed": args.seed, "suites": check_suites(args.suite or default_suites(profile)),
+            "versions": {},
             "limits": {}, "measurements": [], "tests": [], "runs": [], "timing": None}
 
 
@@ -192,6 +203,8 @@ def _prepare(args: argparse.Namespace) -> tuple[DutProfile, Staging]:
     from hil.cli.profile import refuse_problems
 
     refuse_problems(profile)                       # what `hil profile check` would report
+    if args.suite is None:
+        args.suite = default_suites(profile)
     if args.rig_override:                          # campaign (issue 15): checked up front
         from hil.campaign.overrides import parse_overrides
 

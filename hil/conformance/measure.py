@@ -49,6 +49,7 @@ import numpy as np
 from hil.conformance import checks
 from hil.conformance.declared import BusContract, DeclaredFrame, build_contract
 from hil.conformance.framelog import FrameLog, read_bus_log
+from hil.conformance.isobus import isobus_conformance
 from hil.conformance.rigs import rig_bus
 from hil.dut.profile import DutProfile, database_path
 from hil.errors import ConfigError
@@ -163,14 +164,44 @@ def run_conformance(record: Mapping[str, Any], out_dir: Path, profile: DutProfil
     if not path.exists():
         return Conformance(detail={"skipped": "the run wrote no bus.log"})
     contract = contract or contract_of(profile)
-    log = read_bus_log(path, keep="rx+sync")
-    return judge(log, contract, profile, clock=str(record.get("clock", "lockstep")),
-                 restarts=sum(1 for e in record.get("events", []) or []
-                              if e.get("kind") == "dut-restart"),
-                 duration_s=float(record.get("sim_s") or 0.0),
-                 physics_period_s=physics_period_s, foreign=_foreign_keys(record),
-                 bus_load=float((record.get("bus_load") or {}).get("fraction") or 0.0),
-                 conditions=conditions)
+    clock = str(record.get("clock", "lockstep"))
+    isobus_log: FrameLog | None = None
+    if profile.wiring.isobus:
+        # an ISOBUS implement's 29-bit frames are judged by the ISOBUS checks (they need the
+        # rig's side too: requests, CTS, a contender), its CANopen frames as any DUT's
+        full = read_bus_log(path, keep="all")
+        isobus_log = full.select(full.extended)
+        sync = ~full.rx & ~full.extended & (full.can_id == SYNC_ID)
+        log = full.select((full.rx & ~full.extended) | sync)
+    else:
+        log = read_bus_log(path, keep="rx+sync")
+    out = judge(log, contract, profile, clock=clock,
+                restarts=sum(1 for e in record.get("events", []) or []
+                             if e.get("kind") == "dut-restart"),
+                duration_s=float(record.get("sim_s") or 0.0),
+                physics_period_s=physics_period_s, foreign=_foreign_keys(record),
+                bus_load=float((record.get("bus_load") or {}).get("fraction") or 0.0),
+                conditions=conditions)
+    if isobus_log is not None:
+        resolution_s = (physics_period_s if clock == "realtime"
+                        else profile.timing.control_period_ms / 1000.0)
+        node = {"node": contract.node_name, **(conditions or {})}
+        found = [_with_profile_limits(profile, m) for m in
+                 isobus_conformance(isobus_log, resolution_s=resolution_s, conditions=node)]
+        out.measurements.extend(found)
+        out.detail["isobus"] = [{"name": m.name, "value": m.value, "unit": m.unit,
+                                 "outcome": m.outcome.value, "note": m.note,
+                                 "conditions": {k: v for k, v in m.conditions.items()
+                                                if k not in node}} for m in found]
+    return out
+
+
+def _with_profile_limits(profile: DutProfile, m: Measurement) -> Measurement:
+    """``m`` with the profile's limits for its name, if the profile sets any."""
+    if profile.limit(m.name) is None:
+        return m
+    return Measurement(m.name, m.value, m.unit, conditions=m.conditions, note=m.note,
+                       **_limits(profile, m.name, None, None))
 
 
 def judge(log: FrameLog, contract: BusContract, profile: DutProfile, *, clock: str,

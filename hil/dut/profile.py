@@ -189,6 +189,11 @@ class Wiring:
         A binding file (TOML, :mod:`hil.contract.binding`) of the rig's quantities to that
         database: the rig then speaks the DUT's frames. Empty: the rig's own database and
         default binding.
+    isobus : bool, optional
+        The DUT is an ISOBUS implement (ISO 11783): it claims an address and takes its rate
+        and section states from the rig's Task Controller (field runs under a TC, the
+        ``isobus`` suite), not from the rig's own set-point frames; its 29-bit frames are
+        judged by the ISOBUS conformance checks.
 
     Raises
     ------
@@ -200,6 +205,7 @@ class Wiring:
     command_ids: tuple[int, ...] = ()
     database: str = ""
     binding: str = ""
+    isobus: bool = False
 
     def __post_init__(self) -> None:
         if not 1 <= self.node_id <= 127:

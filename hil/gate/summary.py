@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from hil.gate.comparison import GateResult, Row, Status, Verdict
 from hil.gate.keys import format_conditions
+from hil.limits import is_conformance
 
 _LABEL = {Verdict.PASS: "PASS", Verdict.FAIL: "FAIL",
           Verdict.INVALID_BENCH: "INVALID BENCH (no verdict on the DUT)",
@@ -20,8 +21,6 @@ _ICON = {Verdict.PASS: "✅", Verdict.FAIL: "❌", Verdict.INVALID_BENCH: "⚠�
 _LOUD = (Status.FAIL, Status.ERROR, Status.MISSING, Status.REGRESSION)
 #: rows of the "needs a look" table, whatever their kind
 _LOOK = (*_LOUD, Status.MARGINAL)
-#: bus conformance measurements (folded into one line per run unless they need a look)
-BUS_PREFIX = "bus."
 #: statuses listed one by one in the terminal summary
 _LISTED = (Status.FAIL, Status.ERROR, Status.MISSING, Status.REGRESSION, Status.MARGINAL,
            Status.IMPROVED, Status.NEW)
@@ -65,7 +64,8 @@ def render_markdown(result: GateResult, *, baseline_written: str = "") -> str:
 
 
 def _is_bus(name: str) -> bool:
-    return name.startswith(BUS_PREFIX)
+    """A bus conformance measurement (folded into one line per run unless it needs a look)."""
+    return is_conformance(name)
 
 
 def _table(rows: list[Row]) -> list[str]:

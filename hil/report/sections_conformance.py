@@ -9,6 +9,7 @@ import json
 from collections import defaultdict
 from typing import Any
 
+from hil.limits import is_conformance
 from hil.report.markup import DASH, badge, esc, fmt_num, note, row, table
 from hil.report.record import STATUS_ORDER, MeasurementRow, QualRecord
 from hil.report.rundata import RunData
@@ -123,7 +124,7 @@ def _check_rows(measurements: list[MeasurementRow]) -> list[str]:
 
 def conformance_section(qual: QualRecord, runs: list[RunData]) -> str:
     """The section's HTML ("" when the record holds no conformance measurement)."""
-    bus = [m for m in qual.measurements if m.name.startswith("bus.")]
+    bus = [m for m in qual.measurements if is_conformance(m.name)]
     if not bus:
         return ""
     by_message: dict[str, list[MeasurementRow]] = defaultdict(list)

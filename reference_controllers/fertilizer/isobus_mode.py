@@ -43,8 +43,8 @@ its period (in lockstep one step per SYNC, so run time = SYNC count x 0.1 s); fr
 arrive between two steps are stamped with the time of the last step, and each step first sends
 what the network answered to them (a CTS, a reply to a request) and what is due by then: the
 controller sends only in its step, as a firmware's 100 ms task does (ISO 11783-3's response
-time Tr is 200 ms), so in lockstep nothing it sends straddles two steps. Free-running (a daemon's ``--period-ms``), the same
-count is the controller's own tick clock, as a firmware's.
+time Tr is 200 ms), so in lockstep nothing it sends straddles two steps. Free-running (a
+daemon's ``--period-ms``), the same count is the controller's own tick clock, as a firmware's.
 """
 
 from __future__ import annotations
@@ -56,11 +56,12 @@ from dataclasses import dataclass
 import can
 
 from hil.isobus import ddi as dd
+from hil.isobus.can_id import decode_id, make_frame
 from hil.isobus.ddop import ElementType, ObjectPool, PoolBuilder, TriggerMethod
 from hil.isobus.name import IsobusName
 from hil.isobus.network import IsobusNetwork
-from hil.isobus.port import Received
-from hil.isobus.process_data import AckError
+from hil.isobus.port import GLOBAL_ADDRESS, Received
+from hil.isobus.process_data import PROCESS_DATA_PGN, WORKING_SET_MASTER_PGN, AckError
 from hil.isobus.tc_client import TaskControllerClient
 from hil.isobus.tecu import PGN_GROUND_BASED_SPEED, PGN_WHEEL_BASED_SPEED, iso11783_7_database
 from plant_emulators.fertilizer.config import FertilizerRigConfig, load_rig_config
@@ -115,6 +116,25 @@ class IsobusParams:
     ddop : str
         ``"valid"``, or ``"broken"``: a DDOP whose actual rate names a value presentation that
         is not in the pool, which a strict TC refuses (the must-fail profile).
+
+    The rest make the suite's must-fail DUTs out of the reference, each a defect a real
+    implement could have; the defaults are the reference.
+
+    fixed_rate_kg_ha : float
+        > 0: meter this rate whatever the TC sends (ignores the map).
+    sections : str
+        ``"tc"``: the TC's section states (DDI 290); ``"all"``: every row always on.
+    without_tc_rate_kg_ha : float
+        > 0: meter this rate on every row while no pool is active (no TC, or a refused pool),
+        instead of stopping.
+    reconnect : str
+        ``"yes"``; ``"never"``: once the TC is lost, stop listening for it.
+    speed_timeout_s : float
+        A TECU speed older than this is lost (:data:`SPEED_TIMEOUT_S`); a large value holds
+        the last speed heard.
+    claim_first : str
+        ``"yes"``; ``"no"``: send the working-set master message from the preferred address
+        before claiming it.
     """
 
     address: float = 0x81
@@ -122,6 +142,12 @@ class IsobusParams:
     width_m: float = 3.0
     speed: str = "ground"
     ddop: str = "valid"
+    fixed_rate_kg_ha: float = 0.0
+    sections: str = "tc"
+    without_tc_rate_kg_ha: float = 0.0
+    reconnect: str = "yes"
+    speed_timeout_s: float = SPEED_TIMEOUT_S
+    claim_first: str = "yes"
 
     def __post_init__(self) -> None:
         if not (self.address == int(self.address) and 0 <= self.address <= 0xFD):
@@ -136,6 +162,19 @@ class IsobusParams:
             raise ValueError(f"speed must be ground or wheel, got {self.speed!r}")
         if self.ddop not in ("valid", "broken"):
             raise ValueError(f"ddop must be valid or broken, got {self.ddop!r}")
+        for name in ("fixed_rate_kg_ha", "without_tc_rate_kg_ha"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and 0.0 <= value <= MAX_RATE_KG_HA):
+                raise ValueError(f"{name} must be within [0, {MAX_RATE_KG_HA:g}] kg/ha, "
+                                 f"got {value}")
+        if self.sections not in ("tc", "all"):
+            raise ValueError(f"sections must be tc or all, got {self.sections!r}")
+        if self.reconnect not in ("yes", "never"):
+            raise ValueError(f"reconnect must be yes or never, got {self.reconnect!r}")
+        if not (self.speed_timeout_s > 0.0 and not math.isnan(self.speed_timeout_s)):
+            raise ValueError(f"speed_timeout_s must be > 0 s, got {self.speed_timeout_s}")
+        if self.claim_first not in ("yes", "no"):
+            raise ValueError(f"claim_first must be yes or no, got {self.claim_first!r}")
 
 
 def implement_name(identity_number: int) -> IsobusName:
@@ -329,6 +368,18 @@ class IsobusFlowController(FlowController):
         self.setpoint = {"Mode": float(MODE_FIELD)}    # FlowController's view: field mode
         #: what the network answered to frames received since the last step (sent with it)
         self._replies: list[can.Message] = []
+        #: reconnect = never, after the TC was lost
+        self._gave_up = False
+
+    def on_start(self) -> list[can.Message]:
+        """The boot-up message (and, for ``claim_first = "no"``, a working-set master message
+        from the preferred address before the claim: the must-fail DUT's breach)."""
+        boot = super().on_start()
+        if self.isobus.claim_first == "no":
+            early = make_frame(7, WORKING_SET_MASTER_PGN, int(self.isobus.address),
+                               GLOBAL_ADDRESS, bytes([1]) + b"\xff" * 7)
+            boot = [early, *boot]
+        return boot
 
     # --- frames in ----------------------------------------------------------------------
     def on_frame(self, msg: can.Message) -> list[can.Message]:
@@ -337,6 +388,8 @@ class IsobusFlowController(FlowController):
         if msg.is_error_frame or msg.is_remote_frame:
             return []
         if msg.is_extended_id:
+            if self._gave_up and decode_id(msg.arbitration_id).pgn == PROCESS_DATA_PGN:
+                return []           # reconnect = never: deaf to the TC once it was lost
             self._replies.extend(self.network.on_frame(msg, self.clock_s))
             return []
         if msg.arbitration_id == SYNC_ID:
@@ -362,10 +415,11 @@ class IsobusFlowController(FlowController):
             rate = value / MG_PER_M2_PER_KG_HA
             if not 0.0 <= rate <= MAX_RATE_KG_HA:
                 return AckError.VALUE_OUT_OF_OPERATIONAL_RANGE
-            self.rate_kg_ha = rate
+            self.rate_kg_ha = self.isobus.fixed_rate_kg_ha or rate
         elif ddi == dd.SETPOINT_CONDENSED_WORK_STATE_1_16:
             states = dd.unpack_condensed_work_state(value)[:self.row_count]
-            self.sections = [s == 1 for s in states]
+            if self.isobus.sections == "tc":
+                self.sections = [s == 1 for s in states]
         elif ddi == dd.SETPOINT_WORK_STATE:
             if value not in (0, 1, 2, 3):
                 return AckError.VALUE_DOES_NOT_CONFORM_TO_DDI
@@ -395,6 +449,8 @@ class IsobusFlowController(FlowController):
         return None
 
     def _on_connection(self, connected: bool, time_s: float) -> None:
+        if not connected and self.isobus.reconnect == "never":
+            self._gave_up = True
         # a new connection starts from nothing: the TC sends its set-points again
         self.rate_kg_ha = 0.0
         self.work_state = None
@@ -410,16 +466,25 @@ class IsobusFlowController(FlowController):
         order = ("ground", "wheel") if self.isobus.speed == "ground" else ("wheel",)
         for source in order:
             heard = self.speed_heard.get(source)
-            if heard is not None and self.clock_s - heard[0] <= SPEED_TIMEOUT_S + 1e-9:
+            if heard is not None and \
+                    self.clock_s - heard[0] <= self.isobus.speed_timeout_s + 1e-9:
                 return source, heard[1]
         return None
 
     def metering(self) -> bool:
         """The pool is active, a rate is set, the boom is not stopped, a row is on and a speed
-        is known."""
+        is known (``without_tc_rate_kg_ha``: without an active pool, a speed is enough)."""
+        if not self.client.connected and self.isobus.without_tc_rate_kg_ha > 0.0:
+            return self.ground_speed() is not None
         return (self.client.connected and self.rate_kg_ha > 0.0
                 and self.work_state in (None, 1) and any(self.sections)
                 and self.ground_speed() is not None)
+
+    def target_rate_kg_ha(self) -> float:
+        """The rate metered now: the TC's (or the fixed one); without a TC, the fallback."""
+        if not self.client.connected and self.isobus.without_tc_rate_kg_ha > 0.0:
+            return self.isobus.without_tc_rate_kg_ha
+        return self.rate_kg_ha
 
     @property
     def enabled(self) -> bool:
@@ -438,7 +503,7 @@ class IsobusFlowController(FlowController):
         if speed is None or not self.metering():
             return 0.0
         rows = self.active_rows()
-        return 0.1 * self.rate_kg_ha * (rows * self.row_width_m) * speed[1] / rows
+        return 0.1 * self.target_rate_kg_ha() * (rows * self.row_width_m) * speed[1] / rows
 
     def actual_rate_kg_ha(self) -> float:
         """The measured flow of the active rows as a rate: M = Q / (0.1·D_active·v)."""
