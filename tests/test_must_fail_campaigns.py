@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from hil.dut.profile import must_fail_claims
+from hil.dut.profile import load_profile, must_fail_claims
 
 ROOT = Path(__file__).resolve().parents[1]
 MUST_FAIL = ROOT / "dut_profiles" / "must_fail"
@@ -43,7 +43,8 @@ def test_must_fail_fails_every_sample_of_a_campaign(tmp_path: Path, profile: Pat
     proc = subprocess.run(
         [sys.executable, "-m", "hil", "campaign", str(profile), "--samples", "2",
          "--seed", str(SEED), "--bus", "inline", "--dispersion", "none",
-         "--suite", "fast,robustness", "--workers", "2", "--max-reruns", "0",
+         "--suite", "isobus" if load_profile(profile).wiring.isobus else "fast,robustness",
+         "--workers", "2", "--max-reruns", "0",
          "--no-progress", "--out", str(out)],
         capture_output=True, text=True, cwd=ROOT, timeout=1800)
     assert (out / "campaign.json").exists(), proc.stdout + proc.stderr

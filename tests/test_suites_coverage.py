@@ -35,6 +35,15 @@ SYNTHETIC: dict[str, str] = {
                                   "test_judge_fails_a_heartbeat_gap_longer_than_the_consumer_time",
     "bus.sync_latency.p99": "tests/hil/conformance/test_checks.py::"
                             "test_judge_fails_a_dut_that_misses_sync_answers_in_real_time",
+    # ISOBUS conformance: synthetic frame logs of a defective stack (issue 27)
+    "isobus.claim.request_answered": "tests/hil/conformance/test_isobus_conformance.py::"
+                                     "test_a_request_for_address_claimed_left_unanswered_fails",
+    "isobus.claim.contention": "tests/hil/conformance/test_isobus_conformance.py::"
+                               "test_a_dut_that_keeps_its_address_after_losing_it_fails",
+    "isobus.transport.violations": "tests/hil/conformance/test_isobus_conformance.py::"
+                                   "test_a_tp_sender_that_ignores_cts_fails",
+    "isobus.pgn.rate": "tests/hil/conformance/test_isobus_conformance.py::"
+                       "test_a_cyclic_pgn_off_its_declared_period_fails",
 }
 
 #: measurement -> why no must-fail profile or synthetic DUT fails it yet (issue 21's rule is
