@@ -209,11 +209,12 @@ size_t fert_step(fert_adapter_t *a, double now_s, hal_can_frame_t out[FERT_MAX_O
     if (a->steps % STATUS_EVERY == 0) {
         struct fertilizer_controller_status_t st;
         memset(&st, 0, sizeof st);
-        st.target_flow = fertilizer_controller_status_target_flow_encode(clamp(q, 0.0, 250.0));
-        st.measured_flow = fertilizer_controller_status_measured_flow_encode(
-            clamp(info->measured_gps, 0.0, 250.0));
-        st.command_voltage = fertilizer_controller_status_command_voltage_encode(
-            clamp(info->out.volts, 0.0, 10.0));
+        /* the generated encoders round halves away from zero; Python's cantools rounds them
+         * to even (round()): rint in the default rounding mode, on the same quotient, gives
+         * the Python build's frames when a value lands on a half step */
+        st.target_flow = (uint16_t)rint(clamp(q, 0.0, 250.0) / 0.01);
+        st.measured_flow = (uint16_t)rint(clamp(info->measured_gps, 0.0, 250.0) / 0.01);
+        st.command_voltage = (uint16_t)rint(clamp(info->out.volts, 0.0, 10.0) / 0.001);
         st.pid_segment = info->out.segment;
         st.active_mode = (uint8_t)(mode & 0x3);
         st.enabled = a->setpoint.enable ? 1u : 0u;
