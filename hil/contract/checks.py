@@ -227,6 +227,17 @@ def _check_signal(contract: Contract, q: Quantity, carrier: SignalCarrier, db: B
                                f"{name} has no signal {_for_row(carrier.signal, row)!r}",
                                "one of " + ", ".join(s.name for s in message.signals)))
             continue
+        if not carrier.multiplexer and sig.multiplexer_ids is not None:
+            # a signal that only some multiplexed frames carry cannot be read or written
+            # without saying which (the run would fail at the first frame)
+            mux_name = next((s.name for s in message.signals if s.is_multiplexer), "?")
+            out.append(Problem(src, f"{key}.multiplexer",
+                               f"{name}.{sig.name} is multiplexed (frames with {mux_name} = "
+                               f"{', '.join(map(str, sorted(sig.multiplexer_ids)))}), and "
+                               f"the binding names no multiplexer",
+                               f"multiplexer = {mux_name!r} and the values that carry it "
+                               f"(rows = [...])"))
+            continue
         if carrier.multiplexer:
             try:
                 mux = message.get_signal_by_name(carrier.multiplexer)

@@ -79,6 +79,11 @@ MUST_FAIL = [
     ("multiplexer value", None, ('rows = [1, 2, 3, 4] }\nrow_baseline',
                                  'rows = [1, 2, 3, 5] }\nrow_baseline'),
      ["Flow_R4 is in multiplexed frames [4], not [5]"]),
+    ("multiplexed signal without a multiplexer", None,
+     ('signal = "Flow_R{row}", multiplexer = "RowIdx", rows = [1, 2, 3, 4] }',
+      'signal = "Flow_R{row}" }'),
+     ["[quantities.row_flow.multiplexer]", "AcmeRowFlow.Flow_R1 is multiplexed",
+      "frames with RowIdx = 1", "names no multiplexer"]),
     ("unknown quantity", None, ('enable = {', 'enabled = {'),
      ["no quantity 'enabled'", "the rig needs enable"]),
 ]
