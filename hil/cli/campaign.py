@@ -55,8 +55,10 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
                     "seed S+i with rig parameters drawn from a dispersion file, on a local "
                     "Dask cluster or an existing one; pass rate with an exact confidence "
                     "interval, per-measurement distributions, failing and worst samples "
-                    "rerun with full recording. Every option is checked before any worker "
-                    "starts.")
+                    "rerun with full recording. With the profile's [campaign] requirement "
+                    "the campaign stops as soon as its verdict cannot change. Every option is "
+                    "checked before any worker starts. Exit 0 pass, 1 fail, 3 inconclusive, "
+                    "2 setup error or no sample completed.")
     p.add_argument("profile", help="DUT profile (TOML)")
     p.add_argument("--samples", type=option_type("campaign --samples"), required=True,
                    help=help_with_range("campaign --samples", "number of samples N"))
