@@ -80,6 +80,14 @@ _TRANSITION_LIMIT_M = 2.5
 #: 0.3 s x 1.667 m/s = 0.5 m early or late, per switch. (The reference: <= 0.17 m.)
 _SWITCH_ERROR_LIMIT_M = 0.5
 
+#: isobus.section.overlap_per_switch and skip_per_switch: the run's metres applied where the
+#: ground did not need it (and not applied where it did), summed over the rows, per switch the
+#: field asked for. A controller that switches each within isobus.section.switch_error's 0.5 m
+#: leaves at most 0.5 m of overlap or skip per switch; one that keeps rows on over covered
+#: ground (or off over uncovered) piles up metres between switches, which no single switch's
+#: error shows. (The reference: 0.05 m overlap, 0.04 m skip per switch.)
+_PER_SWITCH_LIMIT_M = 0.5
+
 #: isobus.tc.loss.delivered and isobus.tc.refused.delivered, from ISO 11783-10: without an active
 #: pool (the TC refused it, or has been silent for the 6 s after which a client must consider it
 #: lost) there is neither a rate set-point nor section control; the reference stops metering
@@ -219,6 +227,13 @@ _SPECS = (
                     "worst section switch position error (early or late) against where the "
                     "ground needed applying; condition kind (headland, coverage)",
                     high=_SWITCH_ERROR_LIMIT_M),
+    MeasurementSpec("isobus.section.overlap_per_switch", "m", "fertilizer",
+                    "metres applied on ground that did not need it (headlands, covered "
+                    "ground), summed over rows, per switch the field asked for",
+                    high=_PER_SWITCH_LIMIT_M),
+    MeasurementSpec("isobus.section.skip_per_switch", "m", "fertilizer",
+                    "metres not applied on ground that needed it, summed over rows, per "
+                    "switch the field asked for", high=_PER_SWITCH_LIMIT_M),
     MeasurementSpec("isobus.tc.restart.reconnect_time", "s", "fertilizer",
                     "the TC back after a restart mid-field to the pool active again",
                     high=_RECONNECT_LIMIT_S),

@@ -32,7 +32,11 @@ EXPECTED: dict[str, tuple[str, dict[str, int]]] = {
                                               "isobus.zone.transition_distance": 1}),
     # rows 3 and 4 stay on over the overlapping pass
     "fertilizer-isobus-never-switches-daemon": ("section_switching",
-                                                {"isobus.section.switch_error": 1}),
+                                                {"isobus.section.switch_error": 1,
+                                                 "isobus.section.overlap_per_switch": 1}),
+    # every row stays off from the headland it starts in: nothing is applied
+    "fertilizer-isobus-latches-sections-off-daemon": ("section_switching",
+                                                      {"isobus.section.skip_per_switch": 1}),
     # the wheel-based speed over-reads by the 5 % slip: every zone over-applied
     "fertilizer-isobus-wheel-speed-daemon": ("rate_per_zone",
                                              {"isobus.field.rate_accuracy": 3}),

@@ -123,7 +123,8 @@ class IsobusParams:
     fixed_rate_kg_ha : float
         > 0: meter this rate whatever the TC sends (ignores the map).
     sections : str
-        ``"tc"``: the TC's section states (DDI 290); ``"all"``: every row always on.
+        ``"tc"``: the TC's section states (DDI 290); ``"all"``: every row always on;
+        ``"latch-off"``: a row the TC switches off never comes on again.
     without_tc_rate_kg_ha : float
         > 0: meter this rate on every row while no pool is active (no TC, or a refused pool),
         instead of stopping.
@@ -167,8 +168,8 @@ class IsobusParams:
             if not (math.isfinite(value) and 0.0 <= value <= MAX_RATE_KG_HA):
                 raise ValueError(f"{name} must be within [0, {MAX_RATE_KG_HA:g}] kg/ha, "
                                  f"got {value}")
-        if self.sections not in ("tc", "all"):
-            raise ValueError(f"sections must be tc or all, got {self.sections!r}")
+        if self.sections not in ("tc", "all", "latch-off"):
+            raise ValueError(f"sections must be tc, all or latch-off, got {self.sections!r}")
         if self.reconnect not in ("yes", "never"):
             raise ValueError(f"reconnect must be yes or never, got {self.reconnect!r}")
         if not (self.speed_timeout_s > 0.0 and not math.isnan(self.speed_timeout_s)):
@@ -420,6 +421,9 @@ class IsobusFlowController(FlowController):
             states = dd.unpack_condensed_work_state(value)[:self.row_count]
             if self.isobus.sections == "tc":
                 self.sections = [s == 1 for s in states]
+            elif self.isobus.sections == "latch-off":
+                self.sections = [s == 1 and on for s, on in zip(states, self.sections,
+                                                                 strict=True)]
         elif ddi == dd.SETPOINT_WORK_STATE:
             if value not in (0, 1, 2, 3):
                 return AckError.VALUE_DOES_NOT_CONFORM_TO_DDI

@@ -150,6 +150,13 @@ def test_section_switching(hil_run, hil_measure) -> None:
         kinds.setdefault(event.kind, []).append(event)
     if not kinds:
         raise ValueError("isobus-field has no section switch to judge")
+    switches = len(sw.events)
+    totals = (f"{switches} switches asked for; {sw.spurious_switches} switches where none "
+              f"was needed")
+    hil_measure("isobus.section.overlap_per_switch", sw.overlap_m / switches, run=result,
+                note=f"{sw.overlap_m:.2f} m applied where not needed; {totals}")
+    hil_measure("isobus.section.skip_per_switch", sw.skip_m / switches, run=result,
+                note=f"{sw.skip_m:.2f} m not applied where needed; {totals}")
     for kind, events in sorted(kinds.items()):
         worst = max(events, key=lambda e: abs(e.error_m))
         hil_measure("isobus.section.switch_error", abs(worst.error_m),
