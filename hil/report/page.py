@@ -10,6 +10,7 @@ from hil.report.markup import esc
 from hil.report.record import QualRecord, ReportError, load_qualification
 from hil.report.rundata import RunData, load_runs
 from hil.report.sections_conformance import conformance_section
+from hil.report.sections_field import field_section
 from hil.report.sections_head import VERDICT_WORDS, header, identity_section, verdict_section
 from hil.report.sections_plots import condition_section, run_plot_sections, timing_section
 from hil.report.sections_tables import (
@@ -27,7 +28,8 @@ REPORT_NAME = "report.html"
 _NAV = (("verdict", "Verdict"), ("measurements", "Measurements"),
         ("conformance", "Bus conformance"), ("identity", "Device and bench"),
         ("plots-step", "Step responses"),
-        ("plots-field", "Field runs"), ("per-condition", "Per condition"),
+        ("plots-field", "Field runs"), ("field-maps", "Field maps"),
+        ("per-condition", "Per condition"),
         ("plots-other", "Other runs"), ("timing", "Timing"), ("runs", "Runs"),
         ("tests", "Tests"), ("errors", "Errors"))
 
@@ -47,6 +49,7 @@ def render(qual: QualRecord, runs: list[RunData]) -> str:
         "identity": identity_section(qual, runs),
         "plots-step": plots.get("step", ""),
         "plots-field": plots.get("field", ""),
+        "field-maps": field_section(qual, runs),
         "per-condition": condition_section(qual),
         "plots-other": plots.get("other", ""),
         "timing": timing_section(qual),
