@@ -115,3 +115,21 @@ def test_isobus_must_fail_profile_fails_on_its_defect(tmp_path: Path, name: str)
             f"{name}: {measurement} failed {len(bad)} of {len(got)} conditions, expected at "
             f"least {at_least}: " + "; ".join(f"{m['conditions']} = {m['value']} "
                                               f"{m['outcome']}" for m in got))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("profile", ["fertilizer-piecewise-pid-isobus-daemon",
+                                     "fertilizer-piecewise-pid-isobus-firmware"])
+def test_the_isobus_references_qualify_in_real_time_on_the_software_bus(tmp_path: Path,
+                                                                       profile: str) -> None:
+    """The runs' own length (~4.5 min each): the tractor, the TC and the implement on their
+    own clocks, the implement a process of its own (the firmware's socketcand HAL)."""
+    out = tmp_path / "q"
+    proc = subprocess.run(
+        [sys.executable, "-m", "hil", "qualify", f"dut_profiles/{profile}.toml", "--bus",
+         "softbus", "--clock", "realtime", "--out", str(out), "--quiet"],
+        capture_output=True, text=True, cwd=ROOT, timeout=1200)
+    record = json.loads((out / "record.json").read_text())
+    if record["verdict"] == "invalid-bench":
+        pytest.skip("invalid bench (real-time timing on a loaded host): " + proc.stdout[-300:])
+    assert proc.returncode == 0 and record["verdict"] == "pass", proc.stdout + proc.stderr
