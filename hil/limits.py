@@ -49,6 +49,18 @@ _SENSED_RESPONSE_LIMIT_S = 3.5
 _TRUE_STEADY_STATE_LIMIT_PCT = 2.2
 
 
+#: flow.rows.applied_accuracy, from [F]: each row's mass laid while the terminal has it on, against
+#: its share of the metering rows' total target (split by the rollers' gains, which no
+#: controller governs: one shaft drives them all), judged by [F]'s field accuracy (eq. 15,
+#: >= 97.5 %). Same physics, same budget as flow.field.accuracy: a controller that meters the
+#: rows it is told to meets [F] on each. What is left in a row beyond its roller is its share of
+#: the loop's error and, with one row on, that row's flow module's calibration error (<= 1.2 %,
+#: [F] Table 1), inside the budget. The reference (daemon and firmware, identical): 98.0-98.8 %
+#: per row in field-rows-headland, 99.5-99.96 % in field-rows-blocked. A controller that
+#: divides the target by 4 rows whatever ActiveRows says: 78.9 % (row 1) and 90.3 % (row 2) in
+#: the headland, 88.7-88.9 % for the three rows left in field-rows-blocked.
+_ROWS_ACCURACY_LIMIT_PCT = 97.5
+
 #: isobus.connect.time_to_active, from ISO 11783-5, -3 and -10: what a client that answers every
 #: message within Tr (200 ms, ISO 11783-3) needs from power-up to an active pool. Its address
 #: claim and the 250 ms after it; the TC's status, sent every 2 s, which it waits for (up to 2 s);
@@ -146,6 +158,10 @@ _SPECS = (
                     "slow-down and acceleration, speed steps), in seconds of the target "
                     "flow's change: a controller following speed through a lag of tau reads "
                     "tau", high=_TRANSIENT_LAG_LIMIT_S),
+    MeasurementSpec("flow.rows.applied_accuracy", "%", "fertilizer",
+                    "[F] eq. 15 of a row's mass laid while the terminal's ActiveRows has it on, "
+                    "against its share of the rows' total target (split by the rollers' "
+                    "gains); conditions row, scenario", low=_ROWS_ACCURACY_LIMIT_PCT),
     MeasurementSpec("flow.comparison.accuracy_gain", "pp", "fertilizer",
                     "bench accuracy of the DUT minus that of the constant-speed baseline"),
     MeasurementSpec("flow.fault.sensor_dropout.accuracy", "%", "fertilizer",

@@ -31,6 +31,9 @@ break. Defects (``--defect KIND:ARG``):
   Enable only; after a restart mid-run Enable is already 1, so the meter stays stopped;
 * ``no-fault-reset`` — sowing depth: the CiA 402 master never sets the fault-reset bit
   (controlword bit 7): a drive that tripped stays in Fault;
+* ``ignores-active-rows`` — fertilizer: FertSetpoint's ActiveRows is never read; the firmware
+  divides the field target by the 4 rows it was built for, whatever rows the terminal has
+  switched off (rows 1..N on: each meters N/4 of its target);
 * ``holds-command-at-standstill`` — sowing depth: when control is switched off (no ground
   speed) the last velocity command is kept instead of 0, so the roller keeps moving while
   the machine stands.
@@ -216,6 +219,28 @@ class IgnoresSensorFlags(_Wrapper):
         return super().on_frame(msg)
 
 
+class IgnoresActiveRows(_Wrapper):
+    """Every FertSetpoint is read with ActiveRows = 4 (the rows the firmware was built for)."""
+
+    ROWS = 4
+
+    def __init__(self, inner: Controller, period_s: float, _arg: None = None) -> None:
+        super().__init__(inner, period_s)
+        flow = _flow_controller(inner, "ignores-active-rows")
+        self.setpoint_id = flow.db.frame_id("FertSetpoint")
+        self.message = flow.db.message("FertSetpoint")
+
+    def on_frame(self, msg: can.Message) -> list[can.Message]:
+        if msg.arbitration_id == self.setpoint_id and not msg.is_extended_id:
+            signals = dict(self.message.decode(bytes(msg.data), decode_choices=False,
+                                               scaling=False))
+            signals["ActiveRows"] = self.ROWS
+            msg = can.Message(arbitration_id=msg.arbitration_id, is_extended_id=False,
+                              data=self.message.encode(signals, scaling=False, strict=False),
+                              timestamp=msg.timestamp)
+        return super().on_frame(msg)
+
+
 class NoPlausibility(_Wrapper):
     """A row is valid on its flags and its age alone, whatever flow it reports."""
 
@@ -383,6 +408,7 @@ DEFECTS: dict[str, tuple[type[_Wrapper], Callable[[str], Any] | None]] = {
     "meters-through-stop": (MetersThroughStop, float),
     "ignores-sensor-flags": (IgnoresSensorFlags, None),
     "no-plausibility": (NoPlausibility, None),
+    "ignores-active-rows": (IgnoresActiveRows, None),
     "speed-lowpass": (SpeedLowpass, float),
     "latched-setpoint": (LatchedSetpoint, None),
     "inverted-polarity": (InvertedPolarity, None),

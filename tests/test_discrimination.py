@@ -25,7 +25,8 @@ MUST_FAIL = ROOT / "dut_profiles" / "must_fail"
 SELECTION = ("flow_step or bench_accuracy or dut_silence or sensor_faults or speed_loss or "
              "saturation_recovery or field_transients or dut_restart")
 #: profile stem -> more of the suites its defect needs (added to SELECTION for it alone)
-EXTRA_SELECTION = {"fertilizer-ignores-setpoint-daemon": "field_accuracy or accuracy_gain"}
+EXTRA_SELECTION = {"fertilizer-ignores-setpoint-daemon": "field_accuracy or accuracy_gain",
+                   "fertilizer-ignores-active-rows-daemon": "switched_rows"}
 NOT_PASSED = {"fail", "error"}
 
 #: profile stem -> measurement -> how many of its conditions (at least) must not pass
@@ -69,6 +70,17 @@ EXPECTED: dict[str, dict[str, int]] = {
     "fertilizer-latched-setpoint-daemon": {"flow.fault.saturation.recovery_time": 1},
     # power-cycled mid-run it waits for an Enable edge that never comes: the meter stays off
     "fertilizer-needs-enable-edge-daemon": {"flow.restart.recovery_time": 1},
+    # divides the field target by 4 rows whatever ActiveRows says: row 1 alone meters a
+    # quarter of its target in field-rows-headland (78.9 %), the three rows left 3/4 of theirs
+    # for 20 s in field-rows-blocked (88.7-88.9 %)
+    "fertilizer-ignores-active-rows-daemon": {"flow.rows.applied_accuracy": 4},
+}
+
+#: profile stem -> measurements it must pass in every condition: the measurement its defect
+#: breaks is judged on its own, not through a neighbour's (issue 32: a controller that trusts
+#: garbage must fail the garbage runs and pass the dropout ones)
+MUST_PASS: dict[str, set[str]] = {
+    "fertilizer-no-plausibility-daemon": {"flow.fault.sensor_dropout.accuracy"},
 }
 
 
@@ -140,6 +152,33 @@ def test_must_fail_profile_fails_on_its_defect(tmp_path: Path, name: str) -> Non
             f"{name}: {measurement} failed {len(bad)} of {len(got)} conditions, expected at "
             f"least {at_least}: " + "; ".join(f"{m['conditions']} = {m['value']} "
                                               f"{m['outcome']}" for m in got))
+    for measurement in MUST_PASS.get(name, set()):
+        got = [m for m in record["measurements"] if m["name"] == measurement]
+        assert got and all(m["outcome"] == "pass" for m in got), (
+            f"{name}: {measurement} must pass (its defect is another measurement's): "
+            + "; ".join(f"{m['conditions']} = {m['value']} {m['outcome']}" for m in got))
+
+
+#: the reference builds (Python daemon in process, C firmware on the software bus) that must
+#: pass the switched-rows runs (field-rows-headland, -blocked) identically
+REFERENCE_BUILDS = ("fertilizer-piecewise-pid-daemon", "fertilizer-piecewise-pid-firmware")
+
+
+@pytest.mark.slow
+def test_references_pass_switched_rows_identically(tmp_path: Path) -> None:
+    """The reference meters each switched row within [F]'s field accuracy, and its two
+    builds lay the same grams (the C firmware must stay identical to the Python)."""
+    values = {}
+    for build in REFERENCE_BUILDS:
+        bus = "inline" if build.endswith("-daemon") else "softbus"
+        proc, record = _qualify(ROOT / "dut_profiles" / f"{build}.toml", tmp_path / build,
+                                "switched_rows", bus=bus)
+        assert proc.returncode == 0 and record["verdict"] == "pass", proc.stdout + proc.stderr
+        values[build] = sorted((str(m["conditions"]), m["value"])
+                               for m in record["measurements"]
+                               if m["name"] == "flow.rows.applied_accuracy")
+        assert len(values[build]) == 8, values[build]
+    assert values[REFERENCE_BUILDS[0]] == values[REFERENCE_BUILDS[1]]
 
 
 @pytest.mark.slow

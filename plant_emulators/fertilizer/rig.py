@@ -34,6 +34,12 @@ from plant_emulators.fertilizer.physics import FertilizerPlant
 MODE_FIELD, MODE_BENCH, MODE_CONSTANT = 0, 1, 2
 
 
+def _switches_rows(scenario: Any) -> bool:
+    """The scenario sets the terminal's ``active_rows`` (initially or by an event)."""
+    return "active_rows" in scenario.initial or any(
+        "active_rows" in (event.set or {}) for event in scenario.events)
+
+
 class FertilizerRig(Rig):
     name = "fertilizer"
     physics_period_s = 0.001
@@ -47,6 +53,8 @@ class FertilizerRig(Rig):
         "width_m": "field working width D, m",
         "ground_speed_mps": "tractor ground speed the driver holds, m/s",
         "speed_source": "0 Hall wheel, 1 PGN 65096, 2 PGN 65097 (FertSetpoint.SpeedSource)",
+        "active_rows": "rows 1..N metering (FertSetpoint.ActiveRows, N rows share the total "
+                       "target): their clutches in, the others' out",
     }
     faults: ClassVar[dict[str, str]] = {
         "flow_sensor_silent": "the flow module of row <target> sends nothing",
@@ -136,6 +144,11 @@ class FertilizerRig(Rig):
         self.controller_silent = False
         self.time_s = 0.0
         self.target_mass_g = 0.0          # per row, integral of the target flow while enabled
+        #: switched rows (the terminal's ActiveRows, rows 1..N metering): each row's own
+        #: target mass and its clutch traced, for scenarios that switch rows (``active_rows``)
+        self.active_rows = rows
+        self.target_mass_row_g = [0.0] * rows
+        self.switched_rows = ctx.scenario is not None and _switches_rows(ctx.scenario)
         self.dut_heartbeat_lost = False
         self.dut_status: dict[str, float] = {}
         self._passed = list(self.plant.sensor_passed_g)
@@ -154,7 +167,8 @@ class FertilizerRig(Rig):
             *((("east_m", "m"), ("north_m", "m"), ("heading_deg", "deg"),
                ("prescribed_rate_kg_ha", "kg/ha"),
                *((f"clutch_{row + 1}", "1") for row in range(rows)))
-              if self.field_run is not None else ()))
+              if self.field_run is not None else ()),
+            *((f"clutch_{row + 1}", "1") for row in range(rows) if self.switched_rows))
         self._pose = self.field_run.pose(0.0) if self.field_run is not None else None
 
     # --- physics ---------------------------------------------------------------------------
@@ -173,7 +187,8 @@ class FertilizerRig(Rig):
             return 0.0
         if self.terminal.mode == MODE_FIELD:
             t = self.terminal
-            return 0.1 * t.rate_kg_per_hm2 * t.width_m * self.speed.true_speed_mps / self.rows
+            return (0.1 * t.rate_kg_per_hm2 * t.width_m * self.speed.true_speed_mps
+                    / self.active_rows)
         return self.terminal.target_flow_gps
 
     def advance(self, n: int, dt: float) -> None:
@@ -191,7 +206,13 @@ class FertilizerRig(Rig):
             sensor.vibration_rms_mps2 = vibration
             sensor.advance(n, dt, (now - before) / span)
         self._passed = passed
-        self.target_mass_g += target * span
+        if self.active_rows == self.rows:
+            self.target_mass_g += target * span
+        else:       # the mean over rows of the rows' targets: the off rows' is 0
+            self.target_mass_g += target * span * self.active_rows / self.rows
+        if self.switched_rows:
+            for row in range(self.active_rows):
+                self.target_mass_row_g[row] += target * span
         self.time_s += span
 
     def _follow_the_path(self) -> None:
@@ -228,8 +249,23 @@ class FertilizerRig(Rig):
             t.width_m = value
         elif name == "speed_source":
             t.speed_source = int(value)
+        elif name == "active_rows":
+            self._switch_rows(value)
         else:
             raise ConfigError(f"unknown input {name!r}", key=name)
+
+    def _switch_rows(self, value: float) -> None:
+        """The terminal's ActiveRows = N: rows 1..N metering (their clutches in), the others'
+        clutches out; the terminal sends N in FertSetpoint from its next frame on."""
+        if self.field_run is not None:
+            raise ConfigError("active_rows is the terminal's: a field run under a Task "
+                              "Controller switches rows by its sections", key="active_rows")
+        if value != int(value) or not 1 <= value <= self.rows:
+            raise ConfigError(f"active_rows must be a whole number of rows 1..{self.rows}, "
+                              f"got {value}", key="active_rows")
+        self.active_rows = int(value)
+        self.terminal.rows = self.active_rows
+        self.plant.engage_rows(tuple(row < self.active_rows for row in range(self.rows)))
 
     def set_fault(self, name: str, active: bool, target: int | None, time_s: float) -> None:
         if name.startswith("flow_sensor_"):
@@ -303,7 +339,8 @@ class FertilizerRig(Rig):
                 *chain.from_iterable(zip(p.flow_at_meter_gps, p.flow_at_sensor_gps,
                                          [m.reported_flow_gps for m in self.flow_modules],
                                          delivered, strict=True)),
-                *(self._field_row() if self.field_run is not None else ()))
+                *(self._field_row() if self.field_run is not None else ()),
+                *((1.0 if c else 0.0 for c in p.row_engaged) if self.switched_rows else ()))
 
     def _field_row(self) -> tuple[float, ...]:
         pose = self._pose
@@ -319,6 +356,8 @@ class FertilizerRig(Rig):
                 "target_mass_per_row_g": self.target_mass_g,
                 "density_offset_frac": p.density_offset_frac,
                 "row_gain": list(p.row_gain),
+                **({"target_mass_row_g": list(self.target_mass_row_g)}
+                   if self.switched_rows else {}),
                 **({"field_run": self.field_run.truth()} if self.field_run is not None
                    else {})}
 
