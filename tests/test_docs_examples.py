@@ -27,7 +27,15 @@ no language, or ``text``
 
 Where commands run, and the rules that adapt them (the only ones):
 
-1. **A scratch checkout.** Each document's commands run with ``cwd`` = a fresh directory under
+0. **Units.** A document is run as one or more units, one test each (``test_doc_examples[doc]``
+   for the first, ``[doc:LINE]`` for the others, LINE its first block's): a block that names a
+   path an earlier block writes (``qual/record.json`` after ``--out qual``; the outputs are
+   the values of ``--out``, ``--summary``, ``-o``, ``-B``, an updated ``--baseline`` and hil's
+   default output directories) is in the earlier block's unit, which runs its blocks in
+   document order; any other block is a unit of its own. A long page is not one long test that
+   keeps a worker busy after the other is done (the tour was ~50 s: its qualifications now run
+   as separate tests). A dependency the rule misses fails the example (a missing file).
+1. **A scratch checkout.** Each unit's commands run with ``cwd`` = a fresh directory under
    ``tmp_path`` that mirrors the repository: every tracked top-level entry is a symlink to the
    real one, except what examples write into, which is copied: ``ci/`` (baselines),
    ``dut_profiles/``, and ``firmware/generated/`` (``firmware/`` itself is a real directory of
@@ -45,9 +53,10 @@ Where commands run, and the rules that adapt them (the only ones):
    line asked for, becomes that port, and so does ``:P/`` inside a socketcand bus spec
    (``socketcand:127.0.0.1:P/can0``). The server is stopped (SIGINT) at the end of the block.
 4. **``xdg-open FILE``** asserts that FILE exists and is not empty instead of opening it.
-5. **``hil qualify``** with the same arguments apart from ``--out`` runs once per test session:
-   a later identical line gets a copy of the first one's output directory and its exit status
-   (lockstep qualifications are bit-for-bit repeatable; this saves ~15 s per repeat).
+5. **``hil qualify``** with the same arguments apart from ``--out`` runs once per test session,
+   for both xdist workers: a later identical line gets a copy of the first one's output
+   directory and its exit status (lockstep qualifications are bit-for-bit repeatable; this
+   saves ~15 s per repeat).
 6. A line that needs a shell (``&&``, ``|``, ``>`` ...) is not run through one: it must be in
    ``SKIPPED`` or have a rule here.
 7. **A line ending in ``&``** (a process the example keeps running, such as the controller that
@@ -81,6 +90,7 @@ checks and a qualification of its step tests, add ~27 s).
 from __future__ import annotations
 
 import functools
+import hashlib
 import json
 import os
 import re
@@ -91,10 +101,12 @@ import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import pytest
+
+from tests.helpers.session_shared import built_once
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -219,6 +231,7 @@ received_msg = can.Message(arbitration_id=0x710, data=[0x05], is_extended_id=Fal
 }
 
 SHELL_LANGS = {"sh", "bash", "shell", "console"}
+PYTHON_LANGS = {"python", "py"}
 SHELL_OPERATORS = {"&&", "||", "|", ";", ">", ">>", "<", "&", "2>", "2>&1"}
 #: files next to the scratch checkout's symlinks that examples write into
 COPIED = ("ci", "dut_profiles", "firmware/generated")
@@ -307,6 +320,93 @@ def shell_lines(block: Block) -> list[ShellLine]:
                              shlex.split(command), comment))
         last_was_command = True
     return out
+
+
+# ---------------------------------------------------------------------------------------------
+# the units of a document: its blocks, apart where they can be
+
+
+#: options whose value is a path the command writes (``hil ... --out``, ``hil gate --summary``,
+#: ``hil profile bind -o``, ``cc -o``, ``cmake -B``)
+OUTPUT_OPTIONS = ("--out", "--summary", "-o", "-B")
+#: where a command writes when it is given no ``--out`` (hil's defaults)
+DEFAULT_OUTPUTS = {("hil", "qualify"): "out", ("hil", "campaign"): "campaign",
+                   ("hil", "run"): "runs", ("hil", "isobus"): "isobus-out"}
+
+
+@functools.cache
+def _top_level() -> frozenset[str]:
+    return frozenset(f.split("/")[0] for f in tracked_files())
+
+
+def written_names(line: ShellLine) -> set[str]:
+    """What ``line`` writes into the scratch checkout, as a later block would name it: the first
+    component of a new path (``qual`` for ``qual/record.json``), or the whole path inside a
+    directory of the repository (``ci/baselines/x.json``, ``firmware/build``)."""
+    argv = [DocRunner.placeholder(t) for t in line.argv]
+    paths = [option(argv, name) for name in OUTPUT_OPTIONS]
+    if "--update-baseline" in argv:
+        paths.append(option(argv, "--baseline"))
+    if "--out" not in argv:
+        paths.append(DEFAULT_OUTPUTS.get(tuple(argv[:2])))
+    names = set()
+    for path in filter(None, paths):
+        parts = Path(path).parts
+        names.add(path if parts[0] in _top_level() else parts[0])
+    return names
+
+
+def mentions(block: Block, name: str) -> bool:
+    """Whether ``block`` names the path ``name`` (or something inside it)."""
+    return re.search(rf"(?<![\w./-]){re.escape(name)}(?![\w.-])", block.text) is not None
+
+
+@functools.cache
+def units(doc: str) -> tuple[tuple[int, ...], ...]:
+    """The blocks of ``doc`` (indices into :func:`blocks`), in the units that must run together
+    (rule 0 of the module docstring)."""
+    return group_blocks(doc, blocks(doc))
+
+
+def group_blocks(doc: str, all_blocks: list[Block]) -> tuple[tuple[int, ...], ...]:
+    """Rule 0: a block that names what an earlier block writes (:func:`written_names`) joins
+    that block's unit; every other block that runs something is a unit of its own. Blocks that
+    run nothing (text, directives) go with the first unit, and a document without blocks is one
+    empty unit, so every page keeps a test."""
+    parent = list(range(len(all_blocks)))
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            i = parent[i]
+        return i
+
+    runs = [i for i, b in enumerate(all_blocks)
+            if b.lang in SHELL_LANGS | PYTHON_LANGS or b.lang in ("json", "toml")]
+    for i in set(range(len(all_blocks))) - set(runs):
+        parent[i] = runs[0] if runs else 0
+    writes: dict[int, set[str]] = {}
+    for j in runs:
+        for i, names in writes.items():
+            if any(mentions(all_blocks[j], name) for name in names):
+                parent[root(j)] = root(i)
+        if all_blocks[j].lang in SHELL_LANGS:
+            writes[j] = {name for line in shell_lines(all_blocks[j])
+                         if (doc, line.text) not in SKIPPED for name in written_names(line)}
+    grouped: dict[int, list[int]] = {}
+    for i in range(len(all_blocks)):
+        grouped.setdefault(root(i), []).append(i)
+    return tuple(sorted((tuple(g) for g in grouped.values()), key=lambda g: g[0])) or ((),)
+
+
+def unit_params() -> list[object]:
+    """One test per unit: the document's name for its first unit (a document of one unit keeps
+    its old test id), ``doc:LINE`` (the unit's first block) for the others."""
+    params = []
+    for doc in DOCS:
+        for n, unit in enumerate(units(doc)):
+            name = doc if n == 0 else f"{doc}:{blocks(doc)[unit[0]].lineno}"
+            params.append(pytest.param(doc, unit, id=name))
+    return params
 
 
 # ---------------------------------------------------------------------------------------------
@@ -399,33 +499,36 @@ def without_option(argv: list[str], name: str) -> tuple[str, ...]:
 
 
 class QualifyMemo:
-    """Rule 5: one real run per distinct ``hil qualify`` line (``--out`` aside) per session."""
+    """Rule 5: one real run per distinct ``hil qualify`` line (``--out`` aside) per test session,
+    shared by the session's pytest-xdist workers (:func:`built_once`): the first test that needs
+    the line runs it and keeps its result and output directory; a later one, on either worker,
+    waits for it if it is still running and gets a copy."""
 
-    def __init__(self, root: Path) -> None:
-        self.root = root
-        self.done: dict[tuple[str, ...], tuple[Result, Path]] = {}
+    def __init__(self, factory: pytest.TempPathFactory) -> None:
+        self.factory = factory
 
     def run(self, argv: list[str], cwd: Path) -> tuple[Result, bool]:
         out = cwd / (option(argv, "--out", "out") or "out")
-        key = without_option(argv, "--out")
-        if key in self.done:
-            result, kept = self.done[key]
+        key = "\0".join(without_option(argv, "--out"))
+        name = f"qualify-{hashlib.sha256(key.encode()).hexdigest()[:16]}"
+        with built_once(self.factory, name) as (entry, built):
+            kept, saved = entry / "out", entry / "result.json"
+            if built:
+                if out.exists():
+                    shutil.rmtree(out)
+                if kept.exists():
+                    shutil.copytree(kept, out)
+                return Result(**json.loads(saved.read_text())), True
+            result = run(argv, cwd)
             if out.exists():
-                shutil.rmtree(out)
-            if kept.exists():
-                shutil.copytree(kept, out)
-            return result, True
-        result = run(argv, cwd)
-        kept = self.root / f"qualify-{len(self.done)}"
-        if out.exists():
-            shutil.copytree(out, kept)
-        self.done[key] = (result, kept)
-        return result, False
+                shutil.copytree(out, kept)
+            saved.write_text(json.dumps(asdict(result)))
+            return result, False
 
 
 @pytest.fixture(scope="session")
 def qualify_memo(tmp_path_factory: pytest.TempPathFactory) -> QualifyMemo:
-    return QualifyMemo(tmp_path_factory.mktemp("qualify-memo"))
+    return QualifyMemo(tmp_path_factory)
 
 
 @pytest.fixture(scope="session")
@@ -524,7 +627,6 @@ class DocRunner:
     memo: QualifyMemo
     ran: list[str] = field(default_factory=list)
     skipped: list[str] = field(default_factory=list)
-    python_blocks: int = 0
     background: list[Background] = field(default_factory=list)
 
     def block(self, block: Block) -> None:
@@ -537,7 +639,7 @@ class DocRunner:
                 self.stop_background()
                 if server is not None:
                     self.stop(server)
-        elif block.lang in ("python", "py"):
+        elif block.lang in PYTHON_LANGS:
             self.python(block)
         elif block.lang in ("json", "toml"):
             check = DATA_CHECKS.get((self.doc, block.lang))
@@ -667,8 +769,8 @@ class DocRunner:
                 pytest.fail(f"hil bus serve did not stop on SIGINT:\n{server.log.read_text()}")
 
     def python(self, block: Block) -> None:
-        self.python_blocks += 1
-        prelude = PYTHON_PRELUDES.get((self.doc, self.python_blocks), "")
+        nth = [b.lineno for b in blocks(self.doc) if b.lang in PYTHON_LANGS].index(block.lineno)
+        prelude = PYTHON_PRELUDES.get((self.doc, nth + 1), "")
         script = self.scratch / f"block-{block.lineno}.py"
         script.write_text(prelude + "\n# --- the document's block ---\n" + block.text)
         result = run([sys.executable, str(script)], self.cwd)
@@ -771,17 +873,39 @@ def checkout(tmp_path: Path, repo_files: list[str]) -> Iterator[Path]:
     yield make_checkout(tmp_path / "checkout", repo_files)
 
 
-@pytest.mark.parametrize("doc", DOCS)
-def test_doc_examples(doc: str, checkout: Path, tmp_path: Path,
+@pytest.mark.parametrize(("doc", "unit"), unit_params())
+def test_doc_examples(doc: str, unit: tuple[int, ...], checkout: Path, tmp_path: Path,
                       qualify_memo: QualifyMemo) -> None:
     runner = DocRunner(doc, checkout, tmp_path, qualify_memo)
-    for block in blocks(doc):
-        runner.block(block)
+    all_blocks = blocks(doc)
+    for index in unit:
+        runner.block(all_blocks[index])
     print(f"\n{doc}: {len(runner.ran)} run, {len(runner.skipped)} skipped")
     for entry in runner.ran:
         print(f"  ran   {entry}")
     for entry in runner.skipped:
         print(f"  skip  {entry}")
+
+
+def test_units_keep_a_block_with_the_block_whose_output_it_reads() -> None:
+    """Rule 0 on a page of its own: the gate that reads ``qual/record.json`` runs after the
+    qualification that writes ``qual`` (even two blocks later, and through a python block's
+    string), the qualification of ``bad`` and the bind's ``-o`` output apart, the text block
+    with the first unit; and every block is in exactly one unit."""
+    def block(lineno: int, lang: str, *lines: str) -> Block:
+        return Block("page.md", lang, lineno, [(lineno + 1 + i, t) for i, t in enumerate(lines)])
+
+    page = [block(1, "", "a layout, not an example"),
+            block(5, "sh", "hil qualify dut_profiles/x.toml --bus softbus --out qual"),
+            block(9, "sh", "hil qualify dut_profiles/y.toml --bus inline --out bad  # exit 1"),
+            block(13, "sh", "hil profile bind x.dbc --rig fertilizer -o x.binding.toml"),
+            block(17, "sh", "hil gate qual/record.json --baseline base.json --update-baseline"),
+            block(21, "python", "import json", "json.load(open('base.json'))"),
+            block(25, "sh", "hil run --rig fertilizer --scenario bench-step --out qualms")]
+    assert group_blocks("page.md", page) == ((0, 1, 4, 5), (2,), (3,), (6,))
+    for doc in DOCS:
+        indices = sorted(i for unit in units(doc) for i in unit)
+        assert indices == list(range(len(blocks(doc)))), doc
 
 
 def test_skip_table_is_current() -> None:
