@@ -1,10 +1,15 @@
 """Shared fixtures: an embedded software bus, a leak check for threads; the longest tests first.
 
-The test command runs on both cores (``scripts/test.sh``: pytest-xdist, ``-n 2``). xdist hands
-the tests out in collection order, so a long test collected last would run alone at the end
-while the other worker idles: the longest ones (the user-mode Linux guest, over a minute, above
-all) are moved to the front, where they run beside the host tests. Their relative order, and
-everyone else's, is kept.
+The test command runs on both cores (``scripts/test.sh``: pytest-xdist, ``-n 2 --dist
+loadgroup``). xdist hands the tests out in collection order, one or two at a time to whichever
+worker is free, so a long test collected late would run alone at the end while the other worker
+idles: the longest ones (the user-mode Linux guest above all) are moved to the front, longest
+first, where they run beside each other and the short tests fill the gaps. Their relative order,
+and everyone else's, is kept.
+
+An expensive session fixture is built once for both workers (tests/helpers/session_shared.py):
+the first test to need it is listed here, early, the others keep their place, later, and so
+find it built rather than wait for it.
 """
 
 from __future__ import annotations
@@ -33,18 +38,42 @@ def no_leaked_softbus_threads() -> Iterator[None]:
     assert not leaked, f"test leaked software bus threads: {leaked}"
 
 
-#: test files (or node ids) that take 10 s or more, longest first, measured with
-#: ``--durations`` on the project's 2-vCPU VMs (the guest 65-184 s, the physical ECU ~27 s,
-#: the depth must-fail profiles ~20 s each)
+DOCS = "tests/test_docs_examples.py::test_doc_examples"
+
+#: test files or node ids (prefixes) that take 8 s or more, longest first, as measured with
+#: ``--durations`` on the project's 2-vCPU VMs on a quiet machine (the guest 37-57 s; a docs
+#: page's unit, tests/test_docs_examples.py, is ``page`` for its first block and ``page:LINE``
+#: for each further one). Of the docs units that make the same ``hil qualify`` (run once per
+#: session, the others copy it) only the first to run is listed, so the others find it done
+#: rather than wait for it.
 LONGEST_FIRST = (
     "tests/kernel/test_guest.py",
-    "tests/kernel/test_physical_ecu.py",
-    "tests/test_suites_depth_discrimination.py",
-    "tests/test_discrimination.py",
-    "tests/hil/campaign/test_campaign_e2e.py",
-    "tests/test_docs_examples.py",
-    "tests/fuzz/test_fuzz_cli_args.py",
-    "tests/hil/campaign/test_fork_isolation.py",
+    f"{DOCS}[docs/getting-started/tour.md:31]",             # ~30 s: a depth firmware qualify
+    f"{DOCS}[docs/guide/campaigns.md]",                     # ~27 s: a campaign on 2 workers
+    f"{DOCS}[docs/guide/physical-ecu.md:31]",               # ~26 s in real time
+    "tests/test_suites_depth_discrimination.py",            # 3 x ~19 s, 4 x ~6 s
+    f"{DOCS}[docs/getting-started/reading-a-report.md]",    # ~17 s
+    "tests/hil/campaign/test_fork_isolation.py",            # ~15 s, ~5 s
+    f"{DOCS}[docs/guide/dut-profiles.md:60]",               # ~14 s, shared with 4 other units
+    f"{DOCS}[docs/guide/reference-qualification.md:354]",   # ~14 s
+    f"{DOCS}[docs/getting-started/tour.md:41]",             # ~12 s, shared with qualification
+    "tests/hil/campaign/test_campaign_e2e.py",              # ~13 s
+    "tests/test_discrimination.py",                         # 5 x 10-14 s
+    f"{DOCS}[docs/guide/writing-a-fertilizer-controller.md:212]",   # ~11 s
+    # builds the browser tests' two qualifications (~10 s) for the other 10
+    "tests/browser/test_report_in_chromium.py::test_page_loads_without_console_errors[pass]",
+    "tests/hil/reliability/test_signal_at_every_phase.py",
+    "tests/fuzz/test_fuzz_cli_args.py",                     # ~10 s
+    "tests/test_docs_build.py",                             # ~8 s
+    "tests/hil/reliability/test_dead_dut_qualification.py",
+    "tests/hil/reliability/test_interrupted_qualification.py",
+    "tests/hil/conformance/test_discrimination_bus.py",
+    "tests/hil/test_pytest_plugin.py",
+    "tests/test_busload_suite.py",
+    DOCS,                                                   # the other docs units, 1-10 s
+    "tests/kernel/test_physical_ecu.py",                    # ~5 s, ~3.5 s
+    "tests/plant_emulators/test_sowing_depth_rig.py",
+    "tests/firmware/test_dut_bus_close.py",
 )
 
 

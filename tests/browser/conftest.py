@@ -10,6 +10,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.helpers.session_shared import built_once
+
 from .cdp import Chromium, find_chromium
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -36,16 +38,17 @@ def chromium() -> Iterator[Chromium]:
 
 @pytest.fixture(scope="session")
 def qualifications(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """kind → the qualification directory (record.json, report.html, runs/)."""
-    root = tmp_path_factory.mktemp("browser-qual")
-    out = {}
-    for kind, (profile, expected) in QUALIFICATIONS.items():
-        target = root / kind
-        proc = subprocess.run([sys.executable, "-m", "hil", "qualify", str(ROOT / profile),
-                               "--bus", "inline", "--suite", "fast", "-k", KEYWORD,
-                               "--out", str(target), "--quiet"],
-                              cwd=ROOT, capture_output=True, text=True, timeout=300)
-        assert proc.returncode == expected, proc.stderr[-3000:]
-        assert (target / "report.html").is_file()
-        out[kind] = target
-    return out
+    """kind → the qualification directory (record.json, report.html, runs/); made once per
+    test session, whichever xdist worker needs them first (the tests only read them)."""
+    with built_once(tmp_path_factory, "browser-qual") as (root, built):
+        out = {kind: root / kind for kind in QUALIFICATIONS}
+        if built:
+            return out
+        for kind, (profile, expected) in QUALIFICATIONS.items():
+            proc = subprocess.run([sys.executable, "-m", "hil", "qualify", str(ROOT / profile),
+                                   "--bus", "inline", "--suite", "fast", "-k", KEYWORD,
+                                   "--out", str(out[kind]), "--quiet"],
+                                  cwd=ROOT, capture_output=True, text=True, timeout=300)
+            assert proc.returncode == expected, proc.stderr[-3000:]
+            assert (out[kind] / "report.html").is_file()
+        return out
