@@ -6,11 +6,20 @@
 
 With a DUT profile the rig comes from the profile (``--rig`` may be left out) and the DUT is
 built (firmware, cached), started, watched and stopped as the profile says.
+
+The run writes into ``--out`` as ``hil qualify`` does (:mod:`hil.record.staging`): every option
+is checked and the DUT built and found executable before ``--out`` is touched (a run refused
+at setup leaves it as it was); the run then records into a hidden staging directory inside
+``--out`` while ``record.json`` says it has not finished (the previous one kept as
+``record.previous.json``), and its files move in when it ends, the record last. A disk that
+refuses a write (full, file size limit) is exit 2 naming the path, with the staging removed
+and the previous run's files left as they were; a half-written run never lands in ``--out``.
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime as dt
 import sys
 from pathlib import Path
 from typing import Any
@@ -19,18 +28,27 @@ from hil.cli.args import (
     add_bus_clock,
     check_bus_for_dut,
     check_bus_spec,
+    check_launchable,
     check_positive_seconds,
     check_seed,
     prepare_out_dir,
 )
+from hil.cli.phases import phase
 from hil.dut import DutRunner, InProcessDut
 from hil.dut.build import with_build_id
 from hil.dut.factory import make_dut, profile_run_options
-from hil.dut.profile import load_profile
-from hil.errors import ConfigError
+from hil.dut.profile import DutProfile, load_profile
+from hil.errors import ConfigError, HilError
+from hil.record.atomic import write_json_atomic
+from hil.record.staging import Staging, signals_held
 from hil.rig import Rig, RunOptions, available_rigs, load_rig, run_scenario
-from hil.rig.runner import check_events, check_run
+from hil.rig.runner import RunResult, check_events, check_run
+from hil.rig.scenario import Scenario
 from hil.validation import help_with_range, option_type
+
+#: the staging directory's prefix inside --out (followed by the process id)
+STAGING_PREFIX = ".run-"
+RECORD = "record.json"
 
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -117,28 +135,108 @@ def _run(args: argparse.Namespace) -> int:
     check_run(scenario, RunOptions(out_dir=out, seed=args.seed,
                                    step_timeout_s=args.step_timeout))
     prepare_out_dir(out)
-    extra: dict[str, object] = {}
-    from_profile: dict[str, Any] = {}
-    dut: DutRunner
-    if profile is not None:
-        dut, build = make_dut(profile, bus=args.bus, clock=args.clock, log_dir=out)
-        extra = {"dut_identity": profile.identity(), "dut_build": build}
-        from_profile = profile_run_options(profile)
-    else:
-        dut = _builtin_dut(rig_cls, args.dut)
+    staging = Staging(out, prefix=STAGING_PREFIX, outputs=None, record=RECORD)
+    # the DUT is built and its command checked before --out is touched; its output goes to
+    # the staging directory with the rest of the run
+    dut, extra, from_profile = _make_dut(args, profile, rig_cls, staging.path)
+    try:
+        phase("run:built")
+        # from here on record.json says this run has not finished until it has (the previous
+        # one kept as record.previous.json); a signal during begin() arrives right after it
+        staging.begin(_unfinished(staging, rig_cls, scenario, args,
+                                  "the run started and has not finished (or was killed)"))
+    except KeyboardInterrupt:
+        if not staging.path.exists():
+            print("hil: interrupted before the run began; --out is untouched",
+                  file=sys.stderr)
+            return 130
+        _finish(staging, rig_cls, scenario, args)
+        raise
     print(f"hil: running {rig_cls.name}/{scenario.name} ({scenario.duration_s:g} s, "
           f"{args.clock}) against {args.dut} on {args.bus}", file=sys.stderr)
-    result = run_scenario(rig_cls, scenario, dut,
-                          RunOptions(out_dir=out, clock=args.clock, bus=args.bus, seed=args.seed,
-                                     csv=args.csv, step_timeout_s=args.step_timeout,
-                                     extra_meta=extra, **from_profile))
-    if args.plot:
-        from hil.plot import plot_traces
-        from hil.record import load_traces
+    try:
+        phase("run:staged")
+        with staging.writing():     # a disk refusing a write names it, leaves no staging
+            result = run_scenario(rig_cls, scenario, dut,
+                                  RunOptions(out_dir=staging.path, clock=args.clock,
+                                             bus=args.bus, seed=args.seed, csv=args.csv,
+                                             step_timeout_s=args.step_timeout,
+                                             extra_meta=extra, **from_profile))
+            _refuse_unwritten(result, staging)
+            if args.plot:
+                _plot(rig_cls, scenario, args, staging.path)
+            phase("run:written")
+    finally:
+        # whatever ended the run after it began (an interruption, the DUT, the bus), what it
+        # recorded moves in: its record says why
+        if staging.path.exists():
+            _finish(staging, rig_cls, scenario, args)
+    return _summary(result, out)
 
-        arrays, units = load_traces(out / "traces.npz")
-        plot_traces(arrays, units, rig_cls.plot_groups, out / "plot.png",
-                    f"{rig_cls.name} / {scenario.name} ({args.clock}, {args.dut})")
+
+def _make_dut(args: argparse.Namespace, profile: DutProfile | None, rig_cls: type[Rig],
+              log_dir: Path) -> tuple[DutRunner, dict[str, object], dict[str, Any]]:
+    """The DUT runner (a profile's DUT built, cached, and its command checked: a DUT that
+    cannot start is a setup error before the run), the record's facts of it and the run
+    options the profile sets."""
+    if profile is None:
+        return _builtin_dut(rig_cls, args.dut), {}, {}
+    dut, build = make_dut(profile, bus=args.bus, clock=args.clock, log_dir=log_dir)
+    build_dir = build.get("build_dir") if build else None
+    check_launchable(profile, bus=args.bus, clock=args.clock,
+                     build=Path(str(build_dir)) if build_dir else None)
+    return (dut, {"dut_identity": profile.identity(), "dut_build": build},
+            profile_run_options(profile))
+
+
+def _unfinished(staging: Staging, rig_cls: type[Rig], scenario: Scenario,
+                args: argparse.Namespace, why: str) -> dict[str, Any]:
+    """A run record saying the run did not finish (verdict ``aborted``), naming no file."""
+    return {"run_id": staging.run_id,
+            "started_at": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+            "verdict": "aborted", "error": why, "complete": False, "rig": rig_cls.name,
+            "scenario": scenario.name, "clock": args.clock, "bus": args.bus,
+            "seeds": {} if args.seed is None else {"scenario": args.seed},
+            "measurements": [], "artifacts": [RECORD], "command": sys.argv}
+
+
+def _finish(staging: Staging, rig_cls: type[Rig], scenario: Scenario,
+            args: argparse.Namespace) -> None:
+    """Move the staged run into ``--out``, the record last, signals held. When the run wrote
+    no record (interrupted before it started, or while the recorder wrote), one saying so."""
+    with signals_held(), staging.writing():
+        if not (staging.path / RECORD).exists():
+            write_json_atomic(staging.path / RECORD, _unfinished(
+                staging, rig_cls, scenario, args,
+                "interrupted before the run's record was written; its files may be missing "
+                "or incomplete"))
+        phase("run:promote")            # held: arrives once the run is in
+        staging.promote()
+
+
+def _refuse_unwritten(result: RunResult, staging: Staging) -> None:
+    """A run whose traces or bus logs could not all be written is not a run: the recorder
+    noted why in its record (and wrote that); the staging is removed and the command fails
+    naming ``--out``, instead of promoting truncated files under a verdict."""
+    problems = result.record.get("recorder_problems")
+    if not problems:
+        return
+    staging.discard()
+    raise HilError(f"{staging.out}: the run's files could not all be written "
+                   f"({'; '.join(map(str, problems))}); nothing of this run was kept")
+
+
+def _plot(rig_cls: type[Rig], scenario: Scenario, args: argparse.Namespace,
+          run_dir: Path) -> None:
+    from hil.plot import plot_traces
+    from hil.record import load_traces
+
+    arrays, units = load_traces(run_dir / "traces.npz")
+    plot_traces(arrays, units, rig_cls.plot_groups, run_dir / "plot.png",
+                f"{rig_cls.name} / {scenario.name} ({args.clock}, {args.dut})")
+
+
+def _summary(result: RunResult, out: Path) -> int:
     record = result.record
     timing = record.get("timing") or {}
     print(f"hil: {record['verdict']}: {result.sim_s:.1f} s simulated in {result.wall_s:.2f} s "

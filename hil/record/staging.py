@@ -9,8 +9,10 @@ atomically (:meth:`Staging.promote`). So
 * once it has begun, ``--out``'s record says "not finished" until it has (the placeholder of
   :meth:`Staging.begin`), and the previous record is kept as ``<record>.previous.json``: a kill
   at any moment leaves a record that no gate passes and loses nothing already recorded;
-* a write that fails for want of space (or any other ``OSError``) names the path it was
-  writing, and the staging directory is removed.
+* a write that fails for want of space (or the disk refusing it otherwise: quota, file size
+  limit, read-only, I/O error; :data:`STORAGE_ERRNOS`) names the path it was writing, and the
+  staging directory is removed; any other ``OSError`` (a connection reset, say) is left to the
+  command, which promotes what it recorded.
 
 SIGINT and SIGTERM are held (pending, never dropped) while the staging directory and the
 placeholder are made and while outputs move in; they arrive as soon as the move is done.
@@ -19,6 +21,7 @@ placeholder are made and while outputs move in; they arrive as soon as the move 
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import shutil
 import signal
@@ -31,7 +34,16 @@ from typing import Any
 
 from hil.record.atomic import named_os_error, write_json_atomic
 
-__all__ = ["Staging", "named_os_error", "signals_held"]
+__all__ = ["STORAGE_ERRNOS", "Staging", "is_storage_error", "named_os_error", "signals_held"]
+
+#: the errors of a disk refusing a write: full, over quota, beyond the file size limit
+#: (``RLIMIT_FSIZE``), read-only, failing
+STORAGE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EIO})
+
+
+def is_storage_error(exc: BaseException) -> bool:
+    """True for an ``OSError`` that says the disk refused a write (:data:`STORAGE_ERRNOS`)."""
+    return isinstance(exc, OSError) and exc.errno in STORAGE_ERRNOS
 
 
 @contextlib.contextmanager
@@ -80,8 +92,10 @@ class Staging:
     prefix : str
         The staging directory's name prefix (``.qualify-``, ``.campaign-``); followed by the
         process id, so a later command can tell a dead command's staging from a live one's.
-    outputs : sequence of str
-        The files and directories the command writes besides the record, moved in first.
+    outputs : sequence of str, or None
+        The files and directories the command writes besides the record, moved in first;
+        None: whatever the command staged (``hil run``: the run's directory holds only the
+        run's files, whose names depend on the DUT).
     record : str
         The record's file name, moved in last.
 
@@ -97,10 +111,11 @@ class Staging:
     ('complete', False)
     """
 
-    def __init__(self, out: Path, *, prefix: str, outputs: Sequence[str], record: str) -> None:
+    def __init__(self, out: Path, *, prefix: str, outputs: Sequence[str] | None,
+                 record: str) -> None:
         self.out = Path(out)
         self.prefix = prefix
-        self.outputs = tuple(outputs)
+        self.outputs = None if outputs is None else tuple(outputs)
         self.record = record
         self.run_id = uuid.uuid4().hex[:12]
         self.path = self.out / f"{prefix}{os.getpid()}-{self.run_id}"
@@ -121,7 +136,9 @@ class Staging:
         """Make the staging directory, and with ``placeholder`` mark ``out`` as in progress.
 
         The record found in ``out`` is kept as :attr:`previous` and ``placeholder`` (a record
-        saying "not finished") takes its place. Both or neither, signals held.
+        saying "not finished") takes its place. Both or neither, signals held; the copy is
+        made inside the staging directory and renamed, so a disk too full for it leaves no
+        half-copied :attr:`previous`.
         """
         self.clear_stale()
         with signals_held():
@@ -129,7 +146,9 @@ class Staging:
                 self.path.mkdir()
                 if placeholder is not None:
                     if (self.out / self.record).exists():
-                        shutil.copy2(self.out / self.record, self.previous)
+                        kept = self.path / ".previous"
+                        shutil.copy2(self.out / self.record, kept)
+                        os.replace(kept, self.previous)
                     write_json_atomic(self.out / self.record, placeholder)
             except OSError as exc:
                 shutil.rmtree(self.path, ignore_errors=True)
@@ -145,7 +164,7 @@ class Staging:
             trash = self.path / ".replaced"
             try:
                 trash.mkdir(exist_ok=True)
-                for name in self.outputs:
+                for name in self._staged_outputs():
                     new = self.path / name
                     if not new.exists():
                         continue
@@ -160,6 +179,12 @@ class Staging:
             finally:
                 shutil.rmtree(self.path, ignore_errors=True)
 
+    def _staged_outputs(self) -> tuple[str, ...]:
+        if self.outputs is not None:
+            return self.outputs
+        return tuple(sorted(p.name for p in self.path.iterdir()
+                            if p.name != self.record and not p.name.startswith(".")))
+
     def discard(self) -> None:
         """Remove the staging directory and what it holds (``out`` is left as it is)."""
         shutil.rmtree(self.path, ignore_errors=True)
@@ -168,11 +193,13 @@ class Staging:
     def writing(self) -> Iterator[Path]:
         """A block that writes into the staging directory.
 
-        An ``OSError`` that names no file is re-raised naming ``out``, and the staging
-        directory is removed.
+        A write the disk refused (:func:`is_storage_error`) removes the staging directory and
+        is re-raised naming ``out`` when it names no file. Any other error goes on as it is.
         """
         try:
             yield self.path
         except OSError as exc:
+            if not is_storage_error(exc):
+                raise
             self.discard()
             raise named_os_error(exc, self.out) from exc
