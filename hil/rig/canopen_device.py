@@ -30,6 +30,7 @@ documented way to put canopen on a custom backend. The runner sends them, so the
 from __future__ import annotations
 
 import math
+from collections.abc import Collection
 from pathlib import Path
 from typing import Any
 
@@ -291,6 +292,15 @@ class CanopenDevice(Device):
         self._rpdo_by_id: dict[int, PdoMap] = {
             m.cob_id: m for m in self.node.rpdo.map.values() if m.enabled and m.cob_id}
         self._tpdos = [m for m in self.node.tpdo.map.values() if m.enabled and m.cob_id]
+
+    def rpdo_ids_mapping(self, objects: Collection[int]) -> frozenset[int]:
+        """COB-IDs of the enabled RPDOs that map any of ``objects`` (object indices).
+
+        As the master has configured them (the EDS's defaults until it does).
+        """
+        wanted = set(objects)
+        return frozenset(can_id for can_id, pdo in self._rpdo_by_id.items()
+                         if any(var.index in wanted for var in pdo.map))
 
     # --- configuration by the master (CiA 301) -------------------------------------------
     def _on_configuration_write(self, index: int, subindex: int, od: Any, data: bytes) -> None:

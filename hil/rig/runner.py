@@ -300,6 +300,21 @@ class _Loop:
                 return
         self.rig.on_dut_frame(msg, t)
 
+    def follow_command_ids(self) -> None:
+        """Wait on the rig's command frames as they are now, checked once per control period.
+
+        A CANopen master that remaps its drive's RPDOs at boot moves them
+        (:meth:`Rig.command_ids` follows the configuration).
+        """
+        ids = frozenset(self.rig.command_ids())
+        if ids == self.command_ids:
+            return
+        self.rig.ctx.note(self.clock.time_s, "command-ids",
+                          "the step's command frames are now "
+                          + ", ".join(f"0x{i:X}" for i in sorted(ids)))
+        self.command_ids = ids
+        self.barrier.await_ids = ids
+
     def _requery(self, i: int, device: Device, t: float) -> None:
         """Ask a device that took a frame when it is due now; keep the earlier tick."""
         due_s = device.next_due(t)
@@ -432,6 +447,7 @@ class _Loop:
                     # its whole step; what is left now straddles two steps (an error)
                     if sync_due(k):
                         drain_after_step()
+                        self.follow_command_ids()
                     n = max(1, target - k)
                     k = tick(n)
                     advance(n, dt)
@@ -445,6 +461,7 @@ class _Loop:
                             next_device = min(next_device, target)
                             self._rx_due = math.inf
                     if self.check_dut is not None and k >= next_dut_check:
+                        self.follow_command_ids()
                         self.check_dut()
                         self._check_answering()
                         next_dut_check = k + dut_check_ticks

@@ -184,8 +184,18 @@ class SowingDepthRig(Rig):
 
     #: a CiA 402 master answers SYNC with RPDO1 (profile position) or RPDO2 (velocity)
     await_any_command = True
+    #: what makes an RPDO the step's command: it maps a target (CiA 402 target position,
+    #: target velocity)
+    COMMAND_OBJECTS = (0x607A, 0x60FF)
 
     def command_ids(self) -> frozenset[int]:
+        """The drive's RPDOs that carry a target, as the master has configured them (a master
+        that remaps its PDOs at boot moves them: the lockstep step follows); the EDS's
+        RPDO1/RPDO2 (0x200/0x300 + node) until it does."""
+        drive = getattr(self, "drive", None)
+        ids = drive.rpdo_ids_mapping(self.COMMAND_OBJECTS) if drive is not None else None
+        if ids:
+            return ids
         node = self.config.wiring.drive_node_id
         return frozenset({0x200 + node, 0x300 + node})
 

@@ -67,8 +67,11 @@ def test_a_remapped_drive_runs_profile_position_and_profile_velocity() -> None:
                                                                   seen.get(can_id, 0) + 1))
         # its boot-up may come before the master waits for it: wait for any heartbeat
         master.nmt.wait_for_heartbeat(5)
+        assert device.rpdo_ids_mapping((0x607A, 0x60FF)) == {0x202, 0x302}   # the EDS's
         remap(master)
         assert device.refused == []
+        # the rig's lockstep step waits for the RPDOs that carry a target, where they now are
+        assert device.rpdo_ids_mapping((0x607A, 0x60FF)) == {RPDO1_ID, RPDO2_ID}
         master.setup_402_state_machine(read_pdos=True)      # reads the new layout back by SDO
         assert [v.index for v in master.rpdo[1]] == [0x6040, 0x607A]
         assert master.tpdo[1].cob_id == TPDO1_ID and master.tpdo[1].trans_type == 2

@@ -1,6 +1,7 @@
 from __future__ import annotations
 
 import json
+import struct
 from pathlib import Path
 
 import can
@@ -125,3 +126,46 @@ def test_inline_bus_reports_a_silent_controller(tmp_path: Path) -> None:
 def test_inline_bus_needs_lockstep(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="inline bus needs the lockstep clock"):
         _run(tmp_path, bus="inline", clock="realtime")
+
+
+class _RemappingRig(ToyRig):
+    """Its command frame moves when the controller reconfigures it (as a CANopen master's SDO
+    write moves a drive's RPDO): 0x201 until frame 0x601 arrives, 0x202 after."""
+
+    def __init__(self, ctx) -> None:
+        super().__init__(ctx)
+        self.command_id = 0x201
+
+    def command_ids(self) -> frozenset[int]:
+        return frozenset({self.command_id})
+
+    def on_dut_frame(self, msg: can.Message, time_s: float) -> None:
+        if msg.arbitration_id == 0x601:
+            self.command_id = 0x202
+        elif msg.arbitration_id == 0x202:
+            self.pump = struct.unpack("<f", bytes(msg.data))[0]
+        else:
+            super().on_dut_frame(msg, time_s)
+
+
+class _RemappingController(ToyController):
+    """Reconfigures the rig at its 20th SYNC, then commands on 0x202."""
+
+    def on_frame(self, msg: can.Message) -> list[can.Message]:
+        out = super().on_frame(msg)
+        if msg.arbitration_id != 0x080 or self.syncs < 20:
+            return out
+        if self.syncs == 20:
+            return [can.Message(arbitration_id=0x601, is_extended_id=False, data=b"\x01"), *out]
+        return [can.Message(arbitration_id=0x202, is_extended_id=False, data=m.data)
+                for m in out]
+
+
+def test_lockstep_follows_a_command_frame_the_dut_moves(tmp_path: Path) -> None:
+    result = run_scenario(_RemappingRig, STEP, InProcessDut(_RemappingController()),
+                          RunOptions(out_dir=tmp_path, bus="virtual", step_timeout_s=0.5))
+    assert result.record["error"] is None, result.record["error"]
+    moved = [e for e in result.record["events"] if e["kind"] == "command-ids"]
+    assert [e["detail"] for e in moved] == ["the step's command frames are now 0x202"]
+    arrays, _ = load_traces(tmp_path / "traces.npz")
+    assert arrays["level"][-1] == pytest.approx(1.0, abs=0.05)   # still controlled after it
