@@ -452,6 +452,10 @@ class _Loop:
                     k = tick(n)
                     advance(n, dt)
                 else:
+                    # at least one tick: a device that wants to send again at once (its
+                    # next_due just after now) is served at the next tick, not in a loop
+                    # that never lets the clock move (lockstep's n >= 1 above)
+                    target = max(target, k + 1)
                     while k < target:   # real time: one physics step per tick
                         k = tick()
                         drain()

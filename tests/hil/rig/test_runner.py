@@ -1,7 +1,9 @@
 from __future__ import annotations
 
 import json
+import math
 import struct
+import threading
 from pathlib import Path
 
 import can
@@ -11,7 +13,7 @@ import pytest
 from hil.dut import InProcessDut
 from hil.errors import ConfigError
 from hil.record import load_traces
-from hil.rig import Event, RunOptions, Scenario, run_scenario
+from hil.rig import Event, PeriodicDevice, RunOptions, Scenario, run_scenario
 
 from .toy import SENSOR_ID, ToyController, ToyRig
 
@@ -169,3 +171,41 @@ def test_lockstep_follows_a_command_frame_the_dut_moves(tmp_path: Path) -> None:
     assert [e["detail"] for e in moved] == ["the step's command frames are now 0x202"]
     arrays, _ = load_traces(tmp_path / "traces.npz")
     assert arrays["level"][-1] == pytest.approx(1.0, abs=0.05)   # still controlled after it
+
+
+class _EagerDevice(PeriodicDevice):
+    """Always wants to send again at once: its next_due is just after now."""
+
+    def __init__(self) -> None:
+        super().__init__("eager", 0.1)
+        self.emits = 0
+
+    def next_due(self, time_s: float) -> float:
+        return math.nextafter(time_s, math.inf)
+
+    def frames(self, time_s: float) -> list[can.Message]:
+        self.emits += 1
+        return []
+
+
+class _EagerRig(ToyRig):
+    def __init__(self, ctx) -> None:
+        super().__init__(ctx)
+        self.eager = _EagerDevice()
+        self.devices.append(self.eager)
+
+
+def test_real_time_moves_on_when_a_device_is_always_due(tmp_path: Path) -> None:
+    """A device due again at once is served at the next tick; the clock still moves (before,
+    the real-time loop spun at one tick forever, growing its traces)."""
+    scenario = Scenario(name="short", description="0.3 s", rig="toy", duration_s=0.3)
+    done: list[object] = []
+    worker = threading.Thread(target=lambda: done.append(run_scenario(
+        _EagerRig, scenario, InProcessDut(ToyController()),
+        RunOptions(out_dir=tmp_path, bus="virtual", clock="realtime", step_timeout_s=0.5))),
+        daemon=True)
+    worker.start()
+    worker.join(timeout=30.0)
+    assert done, "the real-time run did not end"
+    arrays, _ = load_traces(tmp_path / "traces.npz")
+    assert len(arrays["time_s"]) == 31 and np.all(np.diff(arrays["time_s"]) > 0)
