@@ -183,6 +183,8 @@ class Tractor:
         self.network = IsobusNetwork(faults=faults, name="tractor")
         self.tecu: TractorEcu = add_tecu(self.network, self.truth)
         tc_cf = self.network.add(TC_NAME, TC_ADDRESS, "TC")
+        #: the TC's control function (its address claim)
+        self.tc_function = tc_cf
         self.tc = TaskControllerServer(tc_cf, options=options or default_server_options(),
                                        setpoints=self._setpoint, on_value=self._on_value)
         tc_cf.run(self.tc)

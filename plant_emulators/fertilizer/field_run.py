@@ -36,7 +36,8 @@ __all__ = ["FIELD_FAULTS", "BoomGeometry", "FieldRun"]
 
 #: faults of a field run under the TC: name -> what it does
 FIELD_FAULTS = {
-    "tc_down": "the Task Controller restarts and stays silent and deaf until cleared",
+    "tc_down": "the Task Controller loses power: silent and deaf until cleared, then it claims "
+               "its address again and restarts",
     "tecu_silent": "the tractor ECU's speed messages (PGN 65096/65097/61474) stop",
 }
 
@@ -147,6 +148,8 @@ class FieldRun:
             if active:
                 self.tractor.tc.restart(time_s, down_s=math.inf)
             else:
+                # powered again: it claims its address (ISO 11783-5) and then sends its status
+                self.tractor.tc_function.claimer.start(time_s)
                 self.tractor.tc.come_back(time_s)
         elif name == "tecu_silent":
             self.tractor.tecu.silent = active
