@@ -61,6 +61,17 @@ _TRUE_STEADY_STATE_LIMIT_PCT = 2.2
 #: the headland, 88.7-88.9 % for the three rows left in field-rows-blocked.
 _ROWS_ACCURACY_LIMIT_PCT = 97.5
 
+#: flow.fault.saturation.delivered_share, from the drive and meter model: while the target is out
+#: of the meter's reach, a controller at full command gets what the drive allows, the flow map at
+#: the shaft speed full command sets (60 r/min on the rig; the supply holds it under the rollers'
+#: load), times the run's density and the rows' mean roller gain (the suite computes it from the
+#: run's configuration and truth: ~64 g/s per row). What that figure leaves out: the density's
+#: wander during the run (0.4 % SD: 1.2 % at 3 SD), the hopper level (2 % from full to empty: the
+#: box at 5/6 and ~5 kg metered, <= 0.6 %), the analog module's gain error at full scale
+#: (0.1 % SD: 0.3 %), the flute ripple over a 6 s mean (< 0.1 %): 2.2 % in all, so 97 %. A
+#: controller that caps its target at 50 g/s reads ~78 %; one at 60 g/s ~94 %.
+_SATURATION_SHARE_LIMIT_PCT = 97.0
+
 #: isobus.connect.time_to_active, from ISO 11783-5, -3 and -10: what a client that answers every
 #: message within Tr (200 ms, ISO 11783-3) needs from power-up to an active pool. Its address
 #: claim and the 250 ms after it; the TC's status, sent every 2 s, which it waits for (up to 2 s);
@@ -176,6 +187,10 @@ _SPECS = (
                     "fertilizer delivered while the machine stands still"),
     MeasurementSpec("flow.fault.saturation.recovery_time", "s", "fertilizer",
                     "time to re-enter the +/-5 % band after the target returns in range"),
+    MeasurementSpec("flow.fault.saturation.delivered_share", "%", "fertilizer",
+                    "mean true flow while the target is beyond the meter's reach (90 g/s), in "
+                    "% of what the meter delivers at full command (drive and meter model)",
+                    low=_SATURATION_SHARE_LIMIT_PCT),
     MeasurementSpec("flow.restart.recovery_time", "s", "fertilizer",
                     "time after a DUT restart until the true flow is back in the +/-5 % band"),
     MeasurementSpec("flow.silence.recovery_time", "s", "fertilizer",

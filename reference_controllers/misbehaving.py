@@ -34,6 +34,9 @@ break. Defects (``--defect KIND:ARG``):
 * ``ignores-active-rows`` — fertilizer: FertSetpoint's ActiveRows is never read; the firmware
   divides the field target by the 4 rows it was built for, whatever rows the terminal has
   switched off (rows 1..N on: each meters N/4 of its target);
+* ``caps-target:G`` — fertilizer: the target flow per row is clamped to G g/s before the law
+  (a rate table that ends at the meter's rated flow, a scaled integer that saturates): any
+  target beyond G is metered at G, below what the meter can deliver;
 * ``holds-command-at-standstill`` — sowing depth: when control is switched off (no ground
   speed) the last velocity command is kept instead of 0, so the roller keeps moving while
   the machine stands.
@@ -241,6 +244,21 @@ class IgnoresActiveRows(_Wrapper):
         return super().on_frame(msg)
 
 
+class CapsTarget(_Wrapper):
+    """The target flow per row is clamped to ``cap_gps`` before the law sees it."""
+
+    def __init__(self, inner: Controller, period_s: float, cap_gps: float) -> None:
+        super().__init__(inner, period_s)
+        if cap_gps <= 0:
+            raise ValueError(f"caps-target needs a cap > 0 g/s, got {cap_gps}")
+        flow = _flow_controller(inner, "caps-target")
+        target = flow.target_gps
+
+        def capped() -> float:
+            return min(float(target()), cap_gps)
+        flow.target_gps = capped
+
+
 class NoPlausibility(_Wrapper):
     """A row is valid on its flags and its age alone, whatever flow it reports."""
 
@@ -409,6 +427,7 @@ DEFECTS: dict[str, tuple[type[_Wrapper], Callable[[str], Any] | None]] = {
     "ignores-sensor-flags": (IgnoresSensorFlags, None),
     "no-plausibility": (NoPlausibility, None),
     "ignores-active-rows": (IgnoresActiveRows, None),
+    "caps-target": (CapsTarget, float),
     "speed-lowpass": (SpeedLowpass, float),
     "latched-setpoint": (LatchedSetpoint, None),
     "inverted-polarity": (InvertedPolarity, None),
