@@ -1,14 +1,6 @@
-"""What a field run under the Task Controller laid where, read for the report from the run's
-own files: the traces (the antenna's pose, each row's delivered mass) and the truth's
-``field_run`` (the openers' geometry, the field file, the prescription map).
-
-The report must not import the suites, so this is computed here, the way the ``isobus``
-suite's truth (``test_suites/fertilizer/field_truth.py``) computes it, with the
-:mod:`hil.isobus.field` helpers: resampled to :data:`SAMPLE_S`, each row is a section of a
-:class:`~hil.isobus.field.Boom` whose opener sweeps a strip; what a row laid from one sample to
-the next is the mass delivered meanwhile over the strip it crossed (``10 x g / m²`` = kg/ha),
-and it applied at all when that is at least :data:`APPLYING_SHARE` of the map's smallest
-non-zero rate (a row switched off lays nothing). The as-applied map is
+"""What a field run under the Task Controller laid where, for the report: the maps and the
+as-applied GeoJSON drawn from :func:`hil.isobus.field.laid.laid_from_run` (the same reading of
+the run's traces and truth as the ``isobus`` suite judges). The as-applied map is
 :class:`~hil.isobus.field.AsAppliedRecord`'s: one polygon per row per :data:`CELL_LENGTH_M` of
 travel, with the mass laid over its area as its rate, in WGS84 (RFC 7946).
 
@@ -30,23 +22,14 @@ import shapely
 from shapely.geometry import mapping, shape
 from shapely.geometry.base import BaseGeometry
 
-from hil.errors import ConfigError
 from hil.isobus.field import (
     AsAppliedRecord,
     Boom,
     Field,
     PrescriptionMap,
-    load_field,
-    load_prescription,
 )
+from hil.isobus.field.laid import LaidError, laid_from_run
 
-#: the sample period of the map, as the suite's truth (at 6 km/h, 17 cm of travel)
-SAMPLE_S = 0.1
-#: a row applies when it lays at least this share of the map's smallest non-zero rate (the
-#: suite's rule: a row switched off lays nothing, one on lays its rate +-15 %)
-APPLYING_SHARE = 0.5
-#: without a non-zero rate in the map, a row applies above this (kg/ha)
-APPLYING_FLOOR_KG_HA = 1.0
 #: each row strip of the as-applied map is cut every this much travel (m)
 CELL_LENGTH_M = 1.0
 #: the unit of what the rig lays (mass per area)
@@ -79,7 +62,8 @@ class ZoneRate:
 
 @dataclass(frozen=True)
 class FieldRunMap:
-    """One field run, sampled at :data:`SAMPLE_S`: ``k`` samples, ``s`` rows."""
+    """One field run, sampled at :data:`hil.isobus.field.laid.SAMPLE_S`: ``k`` samples, ``s``
+    rows."""
 
     field: Field
     prescription: PrescriptionMap | None
@@ -168,32 +152,6 @@ class FieldRunMap:
         Path(path).write_text(json.dumps(self.geojson) + "\n", encoding="utf-8")
 
 
-def _number(run: Mapping[str, Any], *keys: str) -> float:
-    node: Any = run
-    for key in keys:
-        if not isinstance(node, Mapping) or key not in node:
-            raise FieldMapError(f"record.json: truth.field_run.{'.'.join(keys)} missing")
-        node = node[key]
-    if isinstance(node, bool) or not isinstance(node, int | float):
-        raise FieldMapError(f"record.json: truth.field_run.{'.'.join(keys)} is not a number")
-    return float(node)
-
-
-def _load_geometry(run: Mapping[str, Any]) -> tuple[Field, PrescriptionMap | None]:
-    field_file = run.get("field")
-    if not isinstance(field_file, str) or not field_file:
-        raise FieldMapError("record.json: truth.field_run.field names no field file")
-    rx_file = run.get("prescription")
-    try:
-        fld = load_field(field_file)
-        rx = load_prescription(rx_file, frame=fld.frame) if rx_file else None
-    except ConfigError as exc:
-        raise FieldMapError(f"the run's field or map cannot be read: {exc}") from None
-    if rx is not None and rx.unit.name != UNIT:
-        raise FieldMapError(f"{rx_file}: a map in {rx.unit.name}; the rig lays mass ({UNIT})")
-    return fld, rx
-
-
 def field_run_map(record: Mapping[str, Any], traces: Mapping[str, np.ndarray]) -> FieldRunMap:
     """A run's :class:`FieldRunMap` from its ``record.json`` and ``traces.npz``.
 
@@ -205,44 +163,12 @@ def field_run_map(record: Mapping[str, Any], traces: Mapping[str, np.ndarray]) -
     """
     if not is_field_run(record):
         raise FieldMapError("record.json: no truth.field_run (not a field run under a TC)")
-    run = record["truth"]["field_run"]
-    rows = int(_number(run, "boom", "rows"))
     try:
-        boom = Boom.uniform(rows, _number(run, "boom", "width_m"),
-                            fore_aft_m=_number(run, "boom", "opener_offset_m"))
-    except ValueError as exc:
-        raise FieldMapError(f"record.json: truth.field_run.boom: {exc}") from None
-    fld, rx = _load_geometry(run)
-    names = ["time_s", "east_m", "north_m", "heading_deg",
-             *(f"delivered_{r + 1}_g" for r in range(rows))]
-    missing = [n for n in names if n not in traces]
-    if missing:
-        raise FieldMapError(f"traces.npz: no {', '.join(missing)}")
-    t_all = np.asarray(traces["time_s"], dtype=float)
-    if t_all.size < 2:
-        raise FieldMapError("traces.npz: fewer than two samples")
-    step = max(1, round(SAMPLE_S / float(np.median(np.diff(t_all)))))
-    pick = np.arange(0, t_all.size, step)
-    east = np.asarray(traces["east_m"], dtype=float)[pick]
-    north = np.asarray(traces["north_m"], dtype=float)[pick]
-    heading = np.asarray(traces["heading_deg"], dtype=float)[pick]
-    _, centre, _ = boom.section_lines(east, north, heading)
-    travel = np.linalg.norm(np.diff(centre, axis=0), axis=-1)               # (k-1, s)
-    delivered = np.column_stack([np.asarray(traces[f"delivered_{r + 1}_g"], dtype=float)[pick]
-                                 for r in range(rows)])
-    zeros = np.zeros((1, rows))
-    mass = np.vstack([np.diff(delivered, axis=0), zeros])
-    width = np.array([s.width_m for s in boom.sections])
-    area = np.vstack([travel, zeros]) * width[None, :]
-    if rx is not None:
-        zone = rx.zone_index_local(centre[..., 0], centre[..., 1])
-        floor = min((z.rate for z in rx.zones if z.rate > 0), default=0.0)
-    else:
-        zone = np.full(centre.shape[:2], -1)
-        floor = 0.0
-    threshold = APPLYING_SHARE * floor if floor > 0 else APPLYING_FLOOR_KG_HA
-    with np.errstate(divide="ignore", invalid="ignore"):
-        rate = np.where(area > 0, 10.0 * mass / area, 0.0)
-    applying = (area > 0) & (rate >= threshold)
-    return FieldRunMap(fld, rx, boom, t_all[pick], east, north, heading, mass, area, applying,
-                       np.asarray(zone))
+        laid = laid_from_run(record["truth"]["field_run"], traces)
+    except LaidError as exc:
+        raise FieldMapError(str(exc)) from None
+    rx = laid.prescription
+    if rx is not None and rx.unit.name != UNIT:
+        raise FieldMapError(f"{rx.source}: a map in {rx.unit.name}; the rig lays mass ({UNIT})")
+    return FieldRunMap(laid.field, rx, laid.boom, laid.t_s, laid.east_m, laid.north_m,
+                       laid.heading_deg, laid.mass_g, laid.area_m2, laid.applying, laid.zone)

@@ -29,15 +29,9 @@ import shapely
 
 from hil.isobus.field import Boom, Field, PrescriptionMap, load_field, load_prescription
 from hil.isobus.field.coverage import needed_ground
+from hil.isobus.field.laid import SAMPLE_S, Laid, laid_from_run
 from hil.rig import RunResult
 
-#: the sample period of the judged arrays: 1/10 of the control period would be finer than the
-#: openers' own spread; at 6 km/h a sample is 17 cm of travel
-SAMPLE_S = 0.1
-#: a row applies when it lays at least this share of the map's smallest non-zero rate: a row
-#: switched off lays nothing (its clutch stops the roller), one switched on lays its target
-#: with the flutes' +-15 % pulsation, so half the smallest rate splits them cleanly
-APPLYING_SHARE = 0.5
 #: the applied rate smoothed over this much time for judging transitions (the suites' flow
 #: window: the flute pulsation at 2.4-3.6 Hz keeps ~13 % of its amplitude over 1 s)
 SMOOTH_S = 1.0
@@ -112,60 +106,44 @@ class FieldTruth:
 
     # --- the arrays -----------------------------------------------------------------------
     @cached_property
+    def laid(self) -> Laid:
+        """What the rows laid where (:func:`hil.isobus.field.laid.laid_from_run`)."""
+        traces, _ = self.result.traces()
+        return laid_from_run(self.run, traces)
+
+    @cached_property
     def arrays(self) -> FieldArrays:
         """Every trace sample at :data:`SAMPLE_S`, from the start to the end of the run."""
-        traces, _ = self.result.traces()
-        t_all = traces["time_s"]
-        dt = float(np.median(np.diff(t_all)))
-        step = max(1, round(SAMPLE_S / dt))
-        pick = np.arange(0, t_all.size, step)
-        t = t_all[pick]
-        east, north = traces["east_m"][pick], traces["north_m"][pick]
-        heading = traces["heading_deg"][pick]
-        _, centre, _ = self.boom.section_lines(east, north, heading)
-        steps = np.linalg.norm(np.diff(centre, axis=0), axis=-1)            # (k-1, s)
-        distance = np.vstack([np.zeros((1, self.rows)), np.cumsum(steps, axis=0)])
-        delivered = np.column_stack([traces[f"delivered_{r + 1}_g"][pick]
-                                     for r in range(self.rows)])
-        # interval k -> k+1 (the last sample lays nothing: the run ends there)
-        mass = np.vstack([np.diff(delivered, axis=0), np.zeros((1, self.rows))])
-        length = np.vstack([steps, np.zeros((1, self.rows))])
-        width = np.array([s.width_m for s in self.boom.sections])
-        area = length * width[None, :]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            applied = np.where(area > 0, 10.0 * mass / area, 0.0)
+        laid = self.laid
+        t, centre = laid.t_s, laid.centre
+        distance = np.vstack([np.zeros((1, self.rows)), np.cumsum(laid.travel_m[:-1], axis=0)])
         window = max(1, round(SMOOTH_S / SAMPLE_S))
-        smooth = _smoothed_rate(mass, area, window)
+        smooth = _smoothed_rate(laid.mass_g, laid.area_m2, window)
         middle = centre.mean(axis=1)                                        # (k, 2)
         boom_steps = np.linalg.norm(np.diff(middle, axis=0), axis=-1)
         boom_distance = np.concatenate([[0.0], np.cumsum(boom_steps)])[:, None]
         if self.prescription is not None:
             prescribed = self.prescription.rate_at_local(centre[..., 0], centre[..., 1])
-            cell = self.prescription.zone_index_local(centre[..., 0], centre[..., 1])
-            rates = [z.rate for z in self.prescription.zones if z.rate > 0]
-            floor = min(rates, default=0.0)
+            boom_prescribed = self.prescription.rate_at_local(middle[:, 0],
+                                                              middle[:, 1])[:, None]
         else:
             prescribed = np.zeros((t.size, self.rows))
-            cell = np.full((t.size, self.rows), -1)
-            floor = 0.0
-        threshold = APPLYING_SHARE * floor if floor > 0 else 1.0
-        applying = (area > 0) & (applied >= threshold)
-        boom_mass = np.where(applying, mass, 0.0).sum(axis=1, keepdims=True)
-        boom_area = np.where(applying, area, 0.0).sum(axis=1, keepdims=True)
+            boom_prescribed = np.zeros((t.size, 1))
+        applying = laid.applying
+        boom_mass = np.where(applying, laid.mass_g, 0.0).sum(axis=1, keepdims=True)
+        boom_area = np.where(applying, laid.area_m2, 0.0).sum(axis=1, keepdims=True)
         boom_smooth = _smoothed_rate(boom_mass, boom_area, window)
-        boom_prescribed = (self.prescription.rate_at_local(middle[:, 0], middle[:, 1])[:, None]
-                           if self.prescription is not None else np.zeros((t.size, 1)))
         path_t = np.clip(t - self.drive_after_s, 0.0, None)
         samples = self.field.path.sample(path_t)
-        needed = needed_ground(self.boom, east, north, heading, samples.leg, applying,
-                               self.field.work_area)
+        needed = needed_ground(self.boom, laid.east_m, laid.north_m, laid.heading_deg,
+                               samples.leg, applying, self.field.work_area)
         # standing at the start (before the drive), nothing is needed: the field starts
         # when the tractor moves
         needed[t < self.drive_after_s] = False
         needed = _without_slivers(needed, distance, MIN_SWITCH_M)
         inside = shapely.contains_xy(self.field.work_area, centre[..., 0], centre[..., 1])
-        return FieldArrays(t, distance, width, mass, applied, smooth, applying,
-                           np.asarray(prescribed, dtype=float), np.asarray(cell), needed,
+        return FieldArrays(t, distance, laid.width_m, laid.mass_g, laid.rate, smooth, applying,
+                           np.asarray(prescribed, dtype=float), laid.zone, needed,
                            np.asarray(inside, dtype=bool),
                            _steady(samples.speed_m_s, max(1, round(STEADY_S / SAMPLE_S))),
                            boom_distance, np.asarray(boom_prescribed, dtype=float),
