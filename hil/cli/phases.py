@@ -1,7 +1,9 @@
 """Named phase boundaries of the long commands, where tests inject a signal.
 
-``hil qualify`` and ``hil campaign`` call :func:`phase` at each boundary (setup done, build
-done, suites started, each sample, record written, rerun, promote). With the environment
+``hil qualify``, ``hil campaign`` and ``hil run`` call :func:`phase` at each boundary (setup
+done, build done, suites started, each test or sample, record written, rerun, promote; for
+``hil run``: ``run:built`` before ``--out`` is touched, ``run:staged``, ``run:written`` once the
+run's files are staged, ``run:promote`` while they move in). With the environment
 variable ``HIL_TEST_SIGNAL_AT`` set to ``NAME`` (or ``NAME@N``: the N-th time that phase is
 reached, counting from 1), the process sends itself SIGINT there, so a test proves that a
 signal at that exact moment is neither lost nor turned into a pass, without relying on timing.
