@@ -18,11 +18,11 @@ import os
 import resource
 import subprocess
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
+from tests.hil.reliability.test_qualify_setup_errors import _tiny_disk
 from tests.hil.reliability.test_run_staging import PREVIOUS, RUN, previous_run
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -30,20 +30,11 @@ HIL = [sys.executable, "-m", "hil"]
 LIMIT = 100 * 1024
 
 
-@contextlib.contextmanager
-def small_disk(where: Path, size: str = "300k") -> Iterator[Path]:
-    """A tmpfs of ``size`` mounted at ``where`` (skips where it cannot be mounted)."""
+def small_disk(where: Path) -> contextlib.AbstractContextManager[Path]:
+    """A 300 kB tmpfs at ``where`` (the qualify test's); skips where it cannot be mounted."""
     if os.geteuid() != 0:
         pytest.skip("mounting a 300 kB tmpfs needs root")
-    where.mkdir()
-    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs",
-                              str(where)], capture_output=True, text=True)
-    if mounted.returncode != 0:
-        pytest.skip(f"cannot mount a small tmpfs here: {mounted.stderr.strip()}")
-    try:
-        yield where
-    finally:
-        subprocess.run(["umount", "-l", str(where)], check=False)
+    return _tiny_disk(where)
 
 
 def _limit_file_size() -> None:

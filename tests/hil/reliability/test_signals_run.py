@@ -21,6 +21,7 @@ import pytest
 
 from plant_emulators.fertilizer.controllers import PiFlowController
 from tests.hil.reliability.test_run_staging import PREVIOUS, RUN, contents, previous_run
+from tests.hil.test_pytest_plugin import PROFILE
 
 ROOT = Path(__file__).resolve().parents[3]
 HIL = [sys.executable, "-m", "hil"]
@@ -60,29 +61,9 @@ class SigintAtFrame(PiFlowController):
         return super().on_frame(msg)
 
 
-MID_RUN_PROFILE = '''
-[dut]
-name = "sigint-at-frame"
-version = "0.0.1"
-kind = "inprocess"
-rig = "fertilizer"
-controller = "builtin-pi"
-
-[launch]
-inprocess = "tests.hil.reliability.test_signals_run:SigintAtFrame"
-
-[parameters]
-at_frame = 100
-
-[wiring]
-node_id = 0x10
-
-[timing]
-control_period_ms = 100
-
-[limits]
-"flow.step.overshoot" = { high = 5.0 }
-'''
+#: the plugin tests' in-process profile, with this controller
+MID_RUN_PROFILE = PROFILE.replace("plant_emulators.fertilizer.controllers:PiFlowController",
+                                  "tests.hil.reliability.test_signals_run:SigintAtFrame")
 
 
 def _hil(argv: list[str], env: dict[str, str] | None = None,
@@ -124,7 +105,7 @@ def test_a_sigint_at_each_phase_of_a_run_is_never_lost(tmp_path: Path, at: str) 
 
 
 def test_a_sigint_in_the_middle_of_a_run(tmp_path: Path) -> None:
-    profile = tmp_path / "sigint-at-frame.toml"
+    profile = tmp_path / "toy-pi-inprocess.toml"
     profile.write_text(MID_RUN_PROFILE)
     out = tmp_path / "run"
     previous_run(out)
