@@ -23,8 +23,10 @@ needs around it:
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 from hil.errors import ConfigError
 from hil.isobus.field import Boom, Field, Pose, PrescriptionMap, load_field, load_prescription
@@ -98,6 +100,10 @@ class FieldRun:
         self.prescription: PrescriptionMap | None = (
             load_prescription(run.prescription, frame=self.field.frame)
             if run.prescription else None)
+        # the files as read, for the record: a record copied elsewhere still has its maps
+        self._geojson = {key: json.loads(Path(name).read_text(encoding="utf-8"))
+                         for key, name in (("field_geojson", run.field),
+                                           ("prescription_geojson", run.prescription)) if name}
         options = replace(default_server_options(), memory_bytes=run.tc_memory_bytes)
         self.tractor = Tractor(TractorSetup(self.field, self.prescription,
                                             drive_after_s=run.drive_after_s,
@@ -164,6 +170,7 @@ class FieldRun:
             "boom": self.geometry.as_dict(),
             "field": self.run.field,
             "prescription": self.run.prescription,
+            **self._geojson,
             "drive_after_s": self.run.drive_after_s,
             "wheel_slip": self.run.wheel_slip,
             "tc_events": [{"t": round(e.time_s, 6), "kind": e.kind.value,

@@ -27,9 +27,9 @@ from typing import Any
 import numpy as np
 import shapely
 
-from hil.isobus.field import Boom, Field, PrescriptionMap, load_field, load_prescription
+from hil.isobus.field import Boom, Field, PrescriptionMap
 from hil.isobus.field.coverage import needed_ground
-from hil.isobus.field.laid import SAMPLE_S, Laid, laid_from_run
+from hil.isobus.field.laid import SAMPLE_S, Laid, field_geometry, laid_from_run
 from hil.rig import RunResult
 
 #: the applied rate smoothed over this much time for judging transitions (the suites' flow
@@ -93,10 +93,9 @@ class FieldTruth:
         self.rows = int(geometry["rows"])
         self.boom = Boom.uniform(self.rows, float(geometry["width_m"]),
                                  fore_aft_m=float(geometry["opener_offset_m"]))
-        self.field: Field = load_field(self.run["field"])
-        self.prescription: PrescriptionMap | None = (
-            load_prescription(self.run["prescription"], frame=self.field.frame)
-            if self.run["prescription"] else None)
+        self.field: Field
+        self.prescription: PrescriptionMap | None
+        self.field, self.prescription = field_geometry(self.run)
         self.drive_after_s = float(self.run["drive_after_s"])
 
     # --- the TC's events ------------------------------------------------------------------

@@ -28,11 +28,15 @@ import numpy as np
 
 from hil.errors import ConfigError
 from hil.isobus.field.boom import Boom
-from hil.isobus.field.path import Field, load_field
-from hil.isobus.field.prescription import PrescriptionMap, load_prescription
+from hil.isobus.field.path import Field, field_from_geojson, frame_of_field, load_field
+from hil.isobus.field.prescription import (
+    PrescriptionMap,
+    load_prescription,
+    prescription_from_geojson,
+)
 
 __all__ = ["APPLYING_FLOOR_KG_HA", "APPLYING_SHARE", "SAMPLE_S", "Laid", "LaidError",
-           "laid_from_run"]
+           "field_geometry", "laid_from_run"]
 
 #: the sample period: 1/10 of the control period would be finer than the openers' own spread;
 #: at 6 km/h a sample is 17 cm of travel
@@ -90,14 +94,34 @@ def _number(run: Mapping[str, Any], *keys: str) -> float:
     return float(node)
 
 
-def _geometry(run: Mapping[str, Any]) -> tuple[Field, PrescriptionMap | None]:
+def field_geometry(run: Mapping[str, Any]) -> tuple[Field, PrescriptionMap | None]:
+    """The field and the map of a field run: as the record holds them (``field_geojson``,
+    ``prescription_geojson``: a record read elsewhere still has them), else from the files it
+    names.
+
+    Raises
+    ------
+    LaidError
+        Neither can be read (naming the key or the file).
+    """
     field_file = run.get("field")
     if not isinstance(field_file, str) or not field_file:
         raise LaidError("record.json: truth.field_run.field names no field file")
     rx_file = run.get("prescription")
     try:
-        fld = load_field(field_file)
-        rx = load_prescription(rx_file, frame=fld.frame) if rx_file else None
+        if "field_geojson" in run:
+            fld = field_from_geojson(run["field_geojson"], frame_of_field(run["field_geojson"],
+                                                                          field_file),
+                                     source=f"{field_file} (as recorded)")
+        else:
+            fld = load_field(field_file)
+        if not rx_file:
+            rx = None
+        elif "prescription_geojson" in run:
+            rx = prescription_from_geojson(run["prescription_geojson"], frame=fld.frame,
+                                           source=f"{rx_file} (as recorded)")
+        else:
+            rx = load_prescription(rx_file, frame=fld.frame)
     except ConfigError as exc:
         raise LaidError(f"the run's field or map cannot be read: {exc}") from None
     return fld, rx
@@ -124,7 +148,7 @@ def laid_from_run(run: Mapping[str, Any], traces: Mapping[str, np.ndarray]) -> L
                             fore_aft_m=_number(run, "boom", "opener_offset_m"))
     except ValueError as exc:
         raise LaidError(f"record.json: truth.field_run.boom: {exc}") from None
-    fld, rx = _geometry(run)
+    fld, rx = field_geometry(run)
     names = ["time_s", "east_m", "north_m", "heading_deg",
              *(f"delivered_{r + 1}_g" for r in range(rows))]
     missing = [n for n in names if n not in traces]

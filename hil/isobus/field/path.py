@@ -332,6 +332,11 @@ def load_field(path: str | Path, frame: LocalFrame | None = None) -> Field:
     return field_from_geojson(data, frame, source=source)
 
 
+def frame_of_field(data: Any, source: str) -> LocalFrame:
+    """The local frame a field file's data is read in (its boundary's bounding box centre)."""
+    return _frame_of(data, source)
+
+
 def _frame_of(data: Any, source: str) -> LocalFrame:
     """The frame centred on the bounding box of the file's boundary feature."""
     for i, feature in enumerate(data.get("features", []) if isinstance(data, Mapping) else []):
