@@ -37,6 +37,9 @@ break. Defects (``--defect KIND:ARG``):
 * ``caps-target:G`` — fertilizer: the target flow per row is clamped to G g/s before the law
   (a rate table that ends at the meter's rated flow, a scaled integer that saturates): any
   target beyond G is metered at G, below what the meter can deliver;
+* ``command-bias:F`` — fertilizer: every motor command goes out multiplied by F (an output
+  scaling off by F - 1: a wrong mV per volt, a module's gain): a benign variant when the loop
+  removes it (docs/guide/suites.md says why a qualification accepts F = 1.04);
 * ``holds-command-at-standstill`` — sowing depth: when control is switched off (no ground
   speed) the last velocity command is kept instead of 0, so the roller keeps moving while
   the machine stands.
@@ -186,6 +189,29 @@ class MetersThroughStop(_Wrapper):
                     frame = self.db.analog_output_command(ch1_mv=self.min_mv)
             fixed.append(frame)
         return fixed
+
+
+class CommandBias(_Wrapper):
+    """Every motor command frame goes out with its Ch1 output multiplied by ``factor``."""
+
+    def __init__(self, inner: Controller, period_s: float, factor: float) -> None:
+        super().__init__(inner, period_s)
+        if not 0 < factor < 2:
+            raise ValueError(f"command-bias needs a factor in (0, 2), got {factor}")
+        _flow_controller(inner, "command-bias")
+        self.db = _fertilizer_db()
+        self.command_id = self.db.frame_id("AnalogOutputCommand")
+        self.factor = factor
+
+    def on_step(self, msg: can.Message | None) -> list[can.Message]:
+        out = []
+        for frame in self._inner_step(msg):
+            if frame.arbitration_id == self.command_id:
+                ch1 = float(self.db.decode(frame)[1]["Ch1Output"])
+                frame = self.db.analog_output_command(
+                    ch1_mv=min(10000, round(ch1 * self.factor)))
+            out.append(frame)
+        return out
 
 
 class IgnoresSensorFlags(_Wrapper):
@@ -428,6 +454,7 @@ DEFECTS: dict[str, tuple[type[_Wrapper], Callable[[str], Any] | None]] = {
     "no-plausibility": (NoPlausibility, None),
     "ignores-active-rows": (IgnoresActiveRows, None),
     "caps-target": (CapsTarget, float),
+    "command-bias": (CommandBias, float),
     "speed-lowpass": (SpeedLowpass, float),
     "latched-setpoint": (LatchedSetpoint, None),
     "inverted-polarity": (InvertedPolarity, None),
