@@ -38,14 +38,16 @@ def test_sigkill_of_hil_run_leaves_no_dut_behind(dying_profile, tmp_path: Path) 
                              str(dying_profile("child")), "--scenario", "bench-step-23",
                              "--clock", "realtime", "--out", str(out)], cwd=ROOT,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    log = out / "dut.stdout.log"
     pids: dict[str, int] = {}
 
     def started() -> bool:
-        if log.exists():
-            pids.update({k: int(v) for k, v in re.findall(r"(pid|helper) (\d+)",
-                                                          log.read_text())})
-        return {"pid", "helper"} <= set(pids) and "ready" in log.read_text()
+        # hil run stages its files until the run ends: the DUT's log is in --out/.run-*/
+        log = next(out.glob(".run-*/dut.stdout.log"), None)
+        if log is None:
+            return False
+        text = log.read_text()
+        pids.update({k: int(v) for k, v in re.findall(r"(pid|helper) (\d+)", text)})
+        return {"pid", "helper"} <= set(pids) and "ready" in text
     try:
         assert _wait_for(started, 60), proc.stderr.read() if proc.poll() is not None else ""
         assert _alive(pids["pid"]) and _alive(pids["helper"])
