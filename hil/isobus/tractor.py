@@ -62,6 +62,8 @@ _ACTUAL_RATE_FOR_SETPOINT = {dd.SETPOINT_MASS_PER_AREA_RATE: dd.ACTUAL_MASS_PER_
                              dd.SETPOINT_VOLUME_PER_AREA_RATE: dd.ACTUAL_VOLUME_PER_AREA_RATE,
                              dd.SETPOINT_COUNT_PER_AREA_RATE: dd.ACTUAL_COUNT_PER_AREA_RATE}
 _CONDENSED_SETPOINT = range(290, 306)
+#: how many recent poses the tractor keeps (pose() is asked the same times within a tick)
+_POSE_MEMO = 16
 _CONDENSED_ACTUAL = range(161, 177)
 
 
@@ -191,12 +193,25 @@ class Tractor:
         tc_cf.run(self)
         self._implements: dict[int, _Implement] = {}
         self._next_record_s = 0.0
+        self._poses: dict[float, Pose] = {}
 
     # -- the path ------------------------------------------------------------------------------
 
     def pose(self, time_s: float) -> Pose:
-        """Where the antenna is at run time ``time_s``."""
-        return self.setup.field.path.pose(max(0.0, time_s - self.setup.drive_after_s))
+        """Where the antenna is at run time ``time_s``.
+
+        The TECU, the TC's set-points and look-ahead and the rig ask for the same few times in
+        one tick: the last :data:`_POSE_MEMO` are kept (a path sample costs ~0.1 ms).
+        """
+        t = max(0.0, time_s - self.setup.drive_after_s)
+        memo = self._poses
+        pose = memo.get(t)
+        if pose is None:
+            pose = self.setup.field.path.pose(t)
+            if len(memo) >= _POSE_MEMO:
+                del memo[next(iter(memo))]
+            memo[t] = pose
+        return pose
 
     def leg_spans(self, kind: str) -> list[tuple[float, float]]:
         """Run-time spans during which the tractor drives legs of ``kind`` (``pass``,

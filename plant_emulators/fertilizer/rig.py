@@ -170,6 +170,9 @@ class FertilizerRig(Rig):
               if self.field_run is not None else ()),
             *((f"clutch_{row + 1}", "1") for row in range(rows) if self.switched_rows))
         self._pose = self.field_run.pose(0.0) if self.field_run is not None else None
+        #: the map's rate under the openers at ``_pose`` (kg/ha)
+        self._rate_now = (self.field_run.prescribed_rate(self._pose)
+                          if self.field_run is not None and self._pose is not None else 0.0)
 
     # --- physics ---------------------------------------------------------------------------
     def target_flow_row_gps(self) -> float:
@@ -181,8 +184,7 @@ class FertilizerRig(Rig):
             pose = self._pose
             if pose is None or pose.kind not in ("pass", "overlap"):
                 return 0.0
-            return (0.1 * self.field_run.prescribed_rate(pose)
-                    * self.field_run.geometry.row_width_m * pose.speed_m_s)
+            return 0.1 * self._rate_now * self.field_run.geometry.row_width_m * pose.speed_m_s
         if not self.terminal.enable:
             return 0.0
         if self.terminal.mode == MODE_FIELD:
@@ -221,6 +223,7 @@ class FertilizerRig(Rig):
         run = self.field_run
         assert run is not None
         self._pose = run.pose(self.time_s)
+        self._rate_now = run.prescribed_rate(self._pose)
         self.speed.target_speed_mps = self._pose.speed_m_s
         self.plant.engage_rows(run.update_clutches(self.time_s))
         while run.notes:
@@ -346,7 +349,7 @@ class FertilizerRig(Rig):
         pose = self._pose
         run = self.field_run
         assert pose is not None and run is not None
-        return (pose.east_m, pose.north_m, pose.heading_deg, run.prescribed_rate(pose),
+        return (pose.east_m, pose.north_m, pose.heading_deg, self._rate_now,
                 *(1.0 if c else 0.0 for c in self.plant.row_engaged))
 
     def truth(self) -> dict[str, object]:

@@ -22,6 +22,7 @@ The server runs on an :class:`~hil.isobus.port.IsobusPort` and keeps its own tim
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -51,6 +52,10 @@ CLIENT_TIMEOUT_S = 6.0
 """A client silent this long (no client task, no working-set master) is dropped."""
 MIN_STATUS_INTERVAL_S = 0.2
 """A changed status goes out at once, but never sooner than this after the last one."""
+SETPOINT_PERIOD_S = 0.1
+"""How often the TC asks its set-point source (the map, coverage) and sends what changed:
+10 Hz, the rate at which a TC's section control and map look-up run (one control step of a
+100 ms implement)."""
 
 PRIORITY_STATUS = 3
 PRIORITY_ACK = 4
@@ -185,6 +190,8 @@ class TaskControllerServer:
         self._status_changed = False
         self._down_until_s: float | None = None
         self._now_s = 0.0
+        #: when the next set-point round is due (every SETPOINT_PERIOD_S, absolute grid)
+        self._next_setpoints_s: float | None = None
         port.subscribe(pd.PROCESS_DATA_PGN, self._on_process_data)
         port.subscribe(pd.WORKING_SET_MASTER_PGN, self._on_working_set_master)
         port.subscribe(REQUEST_PGN, self._on_request)
@@ -219,7 +226,32 @@ class TaskControllerServer:
                 continue
             if session.pool is not None:
                 self._send_triggers(session)
+        if self._next_setpoints_s is None or now_s >= self._next_setpoints_s - 1e-9:
+            for session in list(self.sessions.values()):
                 self._send_setpoints(session, now_s)
+            if self._next_setpoints_s is None:
+                self._next_setpoints_s = now_s
+            while self._next_setpoints_s <= now_s + 1e-9:
+                self._next_setpoints_s += SETPOINT_PERIOD_S
+
+    def next_due(self, now_s: float) -> float:
+        """When the TC has something to do: its status (a changed one after the least
+        interval), a client's timeout, triggers to send, the next set-point round."""
+        if self.port.address is None:
+            return math.inf               # the network ticks it once the claim settles
+        if self._down(now_s):
+            assert self._down_until_s is not None
+            return self._down_until_s
+        due = now_s if self._next_status_s is None else self._next_status_s
+        if self._status_changed:
+            due = min(due, (self._last_status_s or -math.inf) + MIN_STATUS_INTERVAL_S)
+        for session in self.sessions.values():
+            due = min(due, session.last_seen_s + CLIENT_TIMEOUT_S)
+            if session.pool is not None:
+                due = min(due, now_s if session.triggers_due else
+                          (self._next_setpoints_s if self._next_setpoints_s is not None
+                           else now_s))
+        return max(due, now_s)
 
     def restart(self, now_s: float, *, down_s: float = 0.0) -> None:
         """Restart the TC at ``now_s``: sessions are lost, stored pools kept.
