@@ -223,6 +223,9 @@ def load_compact(doc: Any, *, path: str) -> dict[str, Any]:
             count = m.data.get(field)
             if isinstance(count, bool) or not isinstance(count, int) or count < 0:
                 raise m.error(field, f"expected an integer >= 0, got {count!r}")
+        if m.data["not_computed"] > m.data["n"] or m.data["passed"] > m.data["n"]:
+            raise m.error("n", f"{m.data['n']} samples, fewer than not_computed "
+                               f"{m.data['not_computed']} or passed {m.data['passed']}")
         if m.data.get("worse") is not None:
             w = m.child("worse")
             w.number("mean", nullable=False)

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
 
 from hil.campaign.engine import Campaign, CampaignPlan
 from hil.cli.main import main
@@ -18,6 +19,8 @@ from hil.dut.profile import load_profile
 from hil.gate.campaign import compare_campaigns
 from hil.gate.campaign_baseline import compact_baseline
 from hil.gate.tolerance import Band, Tolerances
+from tests.fuzz.cli import run_cli
+from tests.fuzz.mutate import json_mutations
 
 ROOT = Path(__file__).resolve().parents[3]
 REFERENCE = ROOT / "dut_profiles" / "fertilizer-piecewise-pid-daemon.toml"
@@ -151,3 +154,27 @@ def test_compact_baseline_gives_the_shift_test_what_the_record_gives(
     tolerance.write_text("[default]\nabs = 1.0\n")     # TOL, as a file
     assert _gate(new_dir / "campaign.json", "--baseline", str(store),
                  "--tolerance", str(tolerance)) == 1
+
+
+COMPACT = ROOT / "ci" / "baselines" / "campaign-fertilizer-piecewise-pid-daemon.json"
+
+
+@given(case=json_mutations(COMPACT))
+@settings(max_examples=60, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_a_damaged_compact_baseline_is_refused_or_judged_never_a_traceback(
+        case: tuple[str, bytes], tmp_path_factory: pytest.TempPathFactory) -> None:
+    """The stored compact baseline, mutated (a key deleted, retyped, a NaN, truncation ...):
+    ``hil gate`` refuses it in one line naming the file (exit 2) or judges with it."""
+    what, content = case
+    tmp = tmp_path_factory.mktemp("compact")
+    record = tmp / "camp"
+    _campaign(record, ["pass"] * 5, total=5, rule="fixed")
+    path = tmp / "baseline.json"
+    path.write_bytes(content)
+    outcome = run_cli("gate", str(record / "campaign.json"), "--baseline", str(path))
+    assert "Traceback" not in outcome.stderr and "internal error" not in outcome.stderr, \
+        (what, outcome.stderr)
+    assert outcome.code in (0, 1, 2, 3), (what, outcome)
+    if outcome.code == 2:
+        assert len(outcome.error_lines()) == 1 and path.name in outcome.stderr, (what, outcome)
