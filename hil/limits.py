@@ -6,7 +6,32 @@ suite that forgot to register its measurement), and both are errors.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
+
+from hil.condition_limits import ConditionCase, check_names, select
+
+#: the conditions the suites record, by name, and the kind of their values (a per-condition
+#: limit's value must be of that kind): what a ``when`` case of a limit may name
+CONDITIONS: dict[str, str] = {
+    "target_gps": "number",     # flow step's target, g/s
+    "target_g": "number",       # bench run's target mass, g
+    "speed_kmh": "number",      # field run's ground speed
+    "repeat": "number",         # repetition of a run
+    "transients": "number",     # speed transients judged in a run
+    "row": "number",            # metering row, 1-based
+    "scenario": "text",         # the scenario run
+    "fault": "text",            # the fault injected
+    "bus_load_pct": "number",   # the loaded bus's share, %
+    "from_mm": "number",        # depth step's start
+    "to_mm": "number",          # depth step's target
+    "signal": "text",           # the depth signal judged (sensed, sensed_paired)
+    "speed_band_kmh": "text",   # depth field run's speed band ("3-5")
+    "zone": "text",             # prescription map's zone
+    "rate_kg_ha": "number",     # its rate
+    "kind": "text",             # section switch kind (headland, coverage)
+}
 
 
 @dataclass(frozen=True)
@@ -15,7 +40,11 @@ class MeasurementSpec:
     physics when a profile sets none (a profile's own limit replaces it). ``default_rule``: the
     default limit in words where it depends on the run, so the code that records the
     measurement sets it (the bus conformance checks, hil/conformance/measure.py); it is what
-    the catalogue page prints."""
+    the catalogue page prints. ``conditions``: the names of the conditions the measurement may
+    carry (:data:`CONDITIONS`), which a per-condition limit may name; None where the catalogue
+    does not say (a profile's case is then checked when the measurement is recorded).
+    ``cases``: per-condition defaults (:func:`hil.condition_limits.when`), tried in order
+    before ``low``/``high``."""
 
     name: str
     unit: str
@@ -24,6 +53,24 @@ class MeasurementSpec:
     low: float | None = None
     high: float | None = None
     default_rule: str = ""
+    conditions: tuple[str, ...] | None = None
+    cases: tuple[ConditionCase, ...] = ()
+
+    def __post_init__(self) -> None:
+        unknown = [c for c in self.conditions or () if c not in CONDITIONS]
+        if unknown:
+            raise ValueError(f"{self.name}: conditions {unknown} are not in CONDITIONS")
+        if self.cases:
+            if self.conditions is None:
+                raise ValueError(f"{self.name}: per-condition defaults need its conditions")
+            bad = check_names(self.cases, condition_kinds_of(self), what=self.name)
+            if bad:
+                raise ValueError(f"{self.name}: {bad[0]}: {bad[1]}")
+
+
+def condition_kinds_of(spec: MeasurementSpec) -> dict[str, str]:
+    """The conditions ``spec`` may carry, with their kinds (empty when it declares none)."""
+    return {c: CONDITIONS[c] for c in spec.conditions or ()}
 
 
 #: flow.field.transient_lag, from the rig's physics. The delays a controller cannot avoid
@@ -147,138 +194,157 @@ _SPECS = (
     # fertilizer flow rig, [F]
     MeasurementSpec("flow.step.response_time", "s", "fertilizer",
                     "time from the setpoint step until the true flow (mass per whole flute "
-                    "periods, ~1 s) enters and stays in the +/-5 % band"),
+                    "periods, ~1 s) enters and stays in the +/-5 % band",
+                    conditions=("target_gps",)),
     MeasurementSpec("flow.step.sensed_response_time", "s", "fertilizer",
                     "as flow.step.response_time, on the flow the sensors report",
-                    high=_SENSED_RESPONSE_LIMIT_S),
+                    high=_SENSED_RESPONSE_LIMIT_S, conditions=("target_gps",)),
     MeasurementSpec("flow.step.overshoot", "%", "fertilizer",
-                    "peak of the true flow beyond the target, % of the step"),
+                    "peak of the true flow beyond the target, % of the step",
+                    conditions=("target_gps",)),
     MeasurementSpec("flow.step.steady_state_error", "%", "fertilizer",
                     "|mean sensed flow over the last 10 s - target| / target ([F]'s "
-                    "measurement: what the controller's own flow modules report)"),
+                    "measurement: what the controller's own flow modules report)",
+                    conditions=("target_gps",)),
     MeasurementSpec("flow.step.true_steady_state_error", "%", "fertilizer",
                     "as flow.step.steady_state_error, on the true flow (it adds the flow "
                     "modules' calibration error, which no controller can see)",
-                    high=_TRUE_STEADY_STATE_LIMIT_PCT),
+                    high=_TRUE_STEADY_STATE_LIMIT_PCT, conditions=("target_gps",)),
     MeasurementSpec("flow.bench.accuracy", "%", "fertilizer",
-                    "[F] eq. 15 over a 50 s bench run against the weighed mass"),
+                    "[F] eq. 15 over a 50 s bench run against the weighed mass",
+                    conditions=("target_g", "repeat")),
     MeasurementSpec("flow.field.accuracy", "%", "fertilizer",
-                    "[F] eq. 15 over a 60 s field run against the weighed mass"),
+                    "[F] eq. 15 over a 60 s field run against the weighed mass",
+                    conditions=("speed_kmh", "repeat")),
     MeasurementSpec("flow.field.transient_lag", "s", "fertilizer",
                     "mass error over the speed transients of field-headland (headland "
                     "slow-down and acceleration, speed steps), in seconds of the target "
                     "flow's change: a controller following speed through a lag of tau reads "
-                    "tau", high=_TRANSIENT_LAG_LIMIT_S),
+                    "tau", high=_TRANSIENT_LAG_LIMIT_S, conditions=("transients",)),
     MeasurementSpec("flow.rows.applied_accuracy", "%", "fertilizer",
                     "[F] eq. 15 of a row's mass laid while the terminal's ActiveRows has it on, "
                     "against its share of the rows' total target (split by the rollers' "
-                    "gains); conditions row, scenario", low=_ROWS_ACCURACY_LIMIT_PCT),
+                    "gains); conditions row, scenario", low=_ROWS_ACCURACY_LIMIT_PCT,
+                    conditions=("row", "scenario")),
     MeasurementSpec("flow.comparison.accuracy_gain", "pp", "fertilizer",
-                    "bench accuracy of the DUT minus that of the constant-speed baseline"),
+                    "bench accuracy of the DUT minus that of the constant-speed baseline",
+                    conditions=()),
     MeasurementSpec("flow.fault.sensor_dropout.accuracy", "%", "fertilizer",
                     "accuracy while one flow module gives no usable number: silent, or "
                     "flagging its number invalid (BaselineReady cleared, AdcOverrange set); "
-                    "condition fault"),
+                    "condition fault", conditions=("row", "fault")),
     MeasurementSpec("flow.fault.sensor_garbage.accuracy", "%", "fertilizer",
                     "accuracy while one flow module reports numbers the meter cannot be "
                     "delivering: out of the valid range, or 4x the flow with good flags; "
-                    "condition fault"),
+                    "condition fault", conditions=("row", "fault")),
     MeasurementSpec("flow.fault.speed_loss.overdelivery", "g", "fertilizer",
-                    "fertilizer delivered while the machine stands still"),
+                    "fertilizer delivered while the machine stands still", conditions=()),
     MeasurementSpec("flow.fault.saturation.recovery_time", "s", "fertilizer",
-                    "time to re-enter the +/-5 % band after the target returns in range"),
+                    "time to re-enter the +/-5 % band after the target returns in range",
+                    conditions=()),
     MeasurementSpec("flow.fault.saturation.delivered_share", "%", "fertilizer",
                     "mean true flow while the target is beyond the meter's reach (90 g/s), in "
                     "% of what the meter delivers at full command (drive and meter model)",
-                    low=_SATURATION_SHARE_LIMIT_PCT),
+                    low=_SATURATION_SHARE_LIMIT_PCT, conditions=()),
     MeasurementSpec("flow.restart.recovery_time", "s", "fertilizer",
-                    "time after a DUT restart until the true flow is back in the +/-5 % band"),
+                    "time after a DUT restart until the true flow is back in the +/-5 % band",
+                    conditions=()),
     MeasurementSpec("flow.silence.recovery_time", "s", "fertilizer",
                     "time after the DUT's frames reach the rig again (5 s of cut wire, the "
                     "analog module at 0 V meanwhile) until the true flow is back in the "
-                    "+/-5 % band"),
+                    "+/-5 % band", conditions=()),
     MeasurementSpec("flow.busload.accuracy", "%", "fertilizer",
-                    "bench accuracy on a 250 kbit/s bus loaded near its bit rate"),
+                    "bench accuracy on a 250 kbit/s bus loaded near its bit rate",
+                    conditions=("bus_load_pct",)),
     # sowing depth rig, [D]
     MeasurementSpec("depth.step.response_time", "s", "sowing_depth",
                     "time from the depth step until the paired sensed depth (step run minus its "
-                    "hold twin) stays in the +/-5 % band"),
+                    "hold twin) stays in the +/-5 % band",
+                    conditions=("from_mm", "to_mm", "signal")),
     MeasurementSpec("depth.step.overshoot", "%", "sowing_depth",
-                    "peak of the paired sensed depth beyond the target, % of the step"),
+                    "peak of the paired sensed depth beyond the target, % of the step",
+                    conditions=("from_mm", "to_mm", "signal")),
     MeasurementSpec("depth.step.steady_state_error", "%", "sowing_depth",
-                    "|mean sensed depth over the last 5 s of a step - target| / target"),
+                    "|mean sensed depth over the last 5 s of a step - target| / target",
+                    conditions=("from_mm", "to_mm", "signal")),
     MeasurementSpec("depth.step.true_steady_state_error", "mm", "sowing_depth",
                     "|mean true seed depth over the last 5 s of a step - target|: what the "
                     "seeds got, the sensing bias included",
-                    high=_TRUE_DEPTH_STEADY_STATE_LIMIT_MM),
+                    high=_TRUE_DEPTH_STEADY_STATE_LIMIT_MM, conditions=("from_mm", "to_mm")),
     MeasurementSpec("depth.field.mean", "mm", "sowing_depth",
-                    "mean sampled depth (3 rows x 40 points, headlands excluded)"),
+                    "mean sampled depth (3 rows x 40 points, headlands excluded)",
+                    conditions=("speed_band_kmh",)),
     MeasurementSpec("depth.field.pass_rate", "%", "sowing_depth",
-                    "GB/T 20865: samples within the qualified band (30 mm: 20-40 mm)"),
+                    "GB/T 20865: samples within the qualified band (30 mm: 20-40 mm)",
+                    conditions=("speed_band_kmh",)),
     MeasurementSpec("depth.field.cv", "%", "sowing_depth",
-                    "GB/T 20865: coefficient of variation of the sampled depth"),
+                    "GB/T 20865: coefficient of variation of the sampled depth",
+                    conditions=("speed_band_kmh",)),
     MeasurementSpec("depth.field.inlier_cv", "%", "sowing_depth",
-                    "CV of the samples inside the qualified band"),
+                    "CV of the samples inside the qualified band", conditions=("speed_band_kmh",)),
     MeasurementSpec("depth.fault.drive_recovery_time", "s", "sowing_depth",
                     "time from a drive fault's cause clearing until the drive is in "
-                    "Operation enabled again"),
+                    "Operation enabled again", conditions=()),
     MeasurementSpec("depth.fault.speed_loss.rod_travel", "mm", "sowing_depth",
-                    "rod travel while the machine stands still"),
+                    "rod travel while the machine stands still", conditions=()),
     MeasurementSpec("depth.fault.sensor.deviation", "mm", "sowing_depth",
                     "RMS, over a sensor fault, of the true depth minus that of the same run "
                     "without the fault (same seed), or of the run's own excess beyond 10 mm "
-                    "from the target where that is larger"),
+                    "from the target where that is larger", conditions=("fault",)),
     MeasurementSpec("depth.fault.saturation.recovery_time", "s", "sowing_depth",
                     "time after the target returns into reach (5 s at 90 mm) until the true "
                     "depth, paired with its run at 30 mm throughout, is back in +/-5 % and its "
-                    "own within 10 mm (a run that never followed the target fails)"),
+                    "own within 10 mm (a run that never followed the target fails)", conditions=()),
     MeasurementSpec("depth.silence.recovery_time", "s", "sowing_depth",
                     "time after the DUT's frames reach the rig again (5 s of cut wire) until "
                     "the true depth, paired with its run without the cut, is back in +/-5 % "
-                    "and its own within 10 mm"),
+                    "and its own within 10 mm", conditions=()),
     MeasurementSpec("depth.restart.recovery_time", "s", "sowing_depth",
                     "time after a DUT restart until the true depth, paired with its run "
-                    "without the restart, is back in +/-5 % and its own within 10 mm"),
+                    "without the restart, is back in +/-5 % and its own within 10 mm",
+                    conditions=()),
     MeasurementSpec("depth.busload.pass_rate", "%", "sowing_depth",
-                    "pass rate of a field run on a bus loaded near its bit rate"),
+                    "pass rate of a field run on a bus loaded near its bit rate",
+                    conditions=("speed_band_kmh", "bus_load_pct")),
     MeasurementSpec("depth.busload.inlier_cv", "%", "sowing_depth",
-                    "CV of the in-band seeds of a field run on a bus loaded near its bit rate"),
+                    "CV of the in-band seeds of a field run on a bus loaded near its bit rate",
+                    conditions=("speed_band_kmh", "bus_load_pct")),
     # ISOBUS implements on the fertilizer rig: field runs under its Task Controller (issue 27)
     MeasurementSpec("isobus.connect.time_to_active", "s", "fertilizer",
                     "power-up to the implement's pool active on the rig's TC",
-                    high=_TIME_TO_ACTIVE_LIMIT_S),
+                    high=_TIME_TO_ACTIVE_LIMIT_S, conditions=()),
     MeasurementSpec("isobus.field.rate_accuracy", "%", "fertilizer",
                     "100 - |laid - prescribed| / prescribed (%) per zone of the map, mass per "
                     "area at steady speed away from the zone's boundaries; condition zone",
-                    low=_RATE_ACCURACY_LIMIT_PCT),
+                    low=_RATE_ACCURACY_LIMIT_PCT, conditions=("zone", "rate_kg_ha")),
     MeasurementSpec("isobus.zone.transition_distance", "m", "fertilizer",
                     "from a zone boundary to where the rate laid stays within 5 % of the new "
-                    "rate (worst boundary of the run)", high=_TRANSITION_LIMIT_M),
+                    "rate (worst boundary of the run)", high=_TRANSITION_LIMIT_M, conditions=()),
     MeasurementSpec("isobus.section.switch_error", "m", "fertilizer",
                     "worst section switch position error (early or late) against where the "
                     "ground needed applying; condition kind (headland, coverage)",
-                    high=_SWITCH_ERROR_LIMIT_M),
+                    high=_SWITCH_ERROR_LIMIT_M, conditions=("kind",)),
     MeasurementSpec("isobus.section.overlap_per_switch", "m", "fertilizer",
                     "metres applied on ground that did not need it (headlands, covered "
                     "ground), summed over rows, per switch the field asked for",
-                    high=_PER_SWITCH_LIMIT_M),
+                    high=_PER_SWITCH_LIMIT_M, conditions=()),
     MeasurementSpec("isobus.section.skip_per_switch", "m", "fertilizer",
                     "metres not applied on ground that needed it, summed over rows, per "
-                    "switch the field asked for", high=_PER_SWITCH_LIMIT_M),
+                    "switch the field asked for", high=_PER_SWITCH_LIMIT_M, conditions=()),
     MeasurementSpec("isobus.tc.restart.reconnect_time", "s", "fertilizer",
                     "the TC back after a restart mid-field to the pool active again",
-                    high=_RECONNECT_LIMIT_S),
+                    high=_RECONNECT_LIMIT_S, conditions=()),
     MeasurementSpec("isobus.tc.loss.delivered", "g", "fertilizer",
                     "fertilizer laid while the TC was gone, from 6 s after it fell silent "
                     "(the client's timeout) plus the transport, until it was back",
-                    high=_NO_TC_DELIVERY_LIMIT_G),
+                    high=_NO_TC_DELIVERY_LIMIT_G, conditions=()),
     MeasurementSpec("isobus.tc.refused.delivered", "g", "fertilizer",
                     "fertilizer laid in a run whose TC refused the implement's pool",
-                    high=_NO_TC_DELIVERY_LIMIT_G),
+                    high=_NO_TC_DELIVERY_LIMIT_G, conditions=()),
     MeasurementSpec("isobus.tecu.speed_loss.overapplication", "%", "fertilizer",
                     "fertilizer laid beyond the map from 1 s after the TECU's speed was lost, "
                     "in % of what the map prescribed there",
-                    high=_SPEED_LOSS_OVERAPPLICATION_LIMIT_PCT),
+                    high=_SPEED_LOSS_OVERAPPLICATION_LIMIT_PCT, conditions=()),
     # ISOBUS bus conformance of an ISOBUS DUT, every run (hil/conformance/isobus.py)
     MeasurementSpec("isobus.claim.frames_before", "frames", "*",
                     "frames the DUT sent from an address before claiming it or within the "
@@ -366,17 +432,75 @@ def unit_of(name: str) -> str:
 
 def default_limit_text(name: str) -> str:
     """The limit a qualification judges ``name`` against when the DUT's profile sets none, in
-    words: ``default_rule``, else ``low``/``high``, else "none (information)"."""
+    words: ``default_rule``, else the per-condition cases and ``low``/``high``, else "none
+    (information)"."""
     spec = MEASUREMENTS[name]
     if spec.default_rule:
         return spec.default_rule
-    parts = [f">= {spec.low:g}"] if spec.low is not None else []
-    parts += [f"<= {spec.high:g}"] if spec.high is not None else []
-    return ", ".join(parts) or "none (information)"
+    return limit_text(spec.low, spec.high, spec.cases, otherwise="none (information)")
 
 
 def default_limit(name: str) -> tuple[float | None, float | None]:
     """The (low, high) limit of ``name`` from the rig's physics, used when a DUT profile sets
-    none; (None, None) when the catalogue has none."""
+    none; (None, None) when the catalogue has none. Per-condition defaults:
+    :func:`applied_limit`."""
     spec = MEASUREMENTS[name]
     return spec.low, spec.high
+
+
+def limit_text(low: float | None, high: float | None, cases: tuple[ConditionCase, ...] = (),
+               *, otherwise: str = "") -> str:
+    """A limit in words: each case (``to_mm=20: <= 2``), then the band where none matches."""
+    def band(lo: float | None, hi: float | None) -> str:
+        parts = [f">= {lo:g}"] if lo is not None else []
+        parts += [f"<= {hi:g}"] if hi is not None else []
+        return ", ".join(parts)
+
+    base = band(low, high) or otherwise
+    if not cases:
+        return base
+    rest = f"; otherwise {base}" if base else ""
+    return "; ".join(f"{c.label}: {band(c.low, c.high)}" for c in cases) + rest
+
+
+@dataclass(frozen=True)
+class AppliedLimit:
+    """The limit a measurement is judged against, and where it comes from.
+
+    ``source``: ``profile``, ``profile (to_mm=20)`` (a per-condition case of the profile's
+    entry), ``catalogue``, ``catalogue (to_mm=20)``, or ``none``. ``problem``: why the stated
+    limit cannot be judged (a case naming a condition the measurement does not carry, or a
+    value of another kind), naming the entry; the measurement is then an error.
+    """
+
+    low: float | None = None
+    high: float | None = None
+    marginal: float | None = None
+    source: str = "none"
+    problem: str = ""
+
+
+def applied_limit(name: str, conditions: Mapping[str, Any], stated: Any = None) -> AppliedLimit:
+    """The limit of measurement ``name`` under ``conditions``.
+
+    The profile's entry ``stated`` (:class:`hil.dut.profile.Limit`, or None) first: its first
+    matching case, else its own band; then the catalogue's: its first matching case, else its
+    ``low``/``high``.
+    """
+    spec = MEASUREMENTS[name]
+    strict = spec.conditions is None
+    layers = [("catalogue", spec.cases, spec.low, spec.high, None)]
+    if stated is not None:
+        layers.insert(0, ("profile", stated.cases, stated.low, stated.high, stated.marginal))
+    for source, cases, low, high, marginal in layers:
+        index, problem = select(cases, conditions, strict=strict)
+        if problem:
+            where = f'[limits] "{name}".' if source == "profile" else f"hil/limits.py {name}: "
+            return AppliedLimit(source=source, problem=f"{where}{problem}")
+        if index is not None:
+            case = cases[index]
+            return AppliedLimit(case.low, case.high, case.marginal,
+                                f"{source} ({case.label})")
+        if low is not None or high is not None:
+            return AppliedLimit(low, high, marginal, source)
+    return AppliedLimit()

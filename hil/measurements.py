@@ -1,5 +1,8 @@
 """Measurements: a named value with units, limits and an outcome (after OpenHTF).
 
+Where the limits come from (a DUT profile's entry, one of its per-condition cases, the
+catalogue) is the measurement's ``limit_source``.
+
 >>> m = Measurement("flow.step.overshoot", 3.1, "%", high=5.0, conditions={"target_gps": 23})
 >>> m.outcome, m.marginal
 (<Outcome.PASS: 'pass'>, False)
@@ -44,6 +47,10 @@ class Measurement:
     note: str = ""
     one_sided_fraction: float = 0.01
     marginal_band: float | None = None
+    #: which limit applied: ``profile``, ``profile (to_mm=20)`` (a per-condition case),
+    #: ``catalogue``, ``catalogue (...)``, ``none`` (:func:`hil.limits.applied_limit`); empty
+    #: where the code that judged it does not say (the bus conformance checks)
+    limit_source: str = ""
 
     @property
     def outcome(self) -> Outcome:
@@ -75,4 +82,5 @@ class Measurement:
         value = None if isinstance(self.value, float) and math.isnan(self.value) else self.value
         return {"name": self.name, "value": value, "unit": self.unit, "low": self.low,
                 "high": self.high, "conditions": self.conditions, "outcome": self.outcome.value,
-                "marginal": self.marginal, "note": self.note}
+                "marginal": self.marginal, "note": self.note,
+                **({"limit_source": self.limit_source} if self.limit_source else {})}

@@ -50,7 +50,7 @@ from hil.dut.factory import check_bus_for_dut, make_dut, profile_run_options
 from hil.dut.physical import RESTART_SKIP_REASON, PhysicalDutSetupError
 from hil.dut.profile import DutProfile, load_profile
 from hil.errors import ConfigError, HilError
-from hil.limits import MEASUREMENTS, default_limit, known_measurement
+from hil.limits import MEASUREMENTS, applied_limit, known_measurement
 from hil.measurements import Measurement, Outcome
 from hil.qualification.console import REPORT_ERROR, QualificationConsole
 from hil.qualification.verdict import session_verdict
@@ -421,7 +421,11 @@ class QualificationSession:
                 note: str = "") -> Measurement:
         """Judge one measurement against the profile's limits and keep it for the record.
 
-        The limit is the profile's ``[limits]`` entry for ``name``, else the catalogue's default.
+        The limit is the profile's ``[limits]`` entry for ``name`` (its first ``when`` case that
+        matches ``conditions``, else its band), else the catalogue's default (likewise): see
+        :func:`hil.limits.applied_limit`; the measurement's ``limit_source`` says which. A case
+        that names a condition the measurement does not carry (or a value of another kind)
+        makes the measurement an error naming the profile's key.
 
         Parameters
         ----------
@@ -456,12 +460,20 @@ class QualificationSession:
         if run is not None and run.record.get("error"):
             value = math.nan
             note = _stopped_reason(run) + (f"; {note}" if note else "")
-        limit = self.profile.limit(name)
-        low, high = (limit.low, limit.high) if limit else default_limit(name)
-        m = Measurement(name, float(value), MEASUREMENTS[name].unit, low=low, high=high,
-                        conditions=dict(conditions or {}), note=note,
+        conditions = dict(conditions or {})
+        limit = applied_limit(name, conditions, self.profile.limit(name))
+        if limit.problem:   # a limit stated for conditions this measurement cannot have
+            where = f"{self.profile.path}: " if limit.source == "profile" else ""
+            measured = (f"; measured {float(value):g} {MEASUREMENTS[name].unit}"
+                        if math.isfinite(float(value)) else "")
+            note = f"limit not applied: {where}{limit.problem}{measured}" + (
+                f"; {note}" if note else "")
+            value = math.nan
+        m = Measurement(name, float(value), MEASUREMENTS[name].unit, low=limit.low,
+                        high=limit.high, conditions=conditions, note=note,
+                        limit_source=limit.source,
                         **({"marginal_band": limit.marginal}
-                           if limit is not None and limit.marginal is not None else {}))
+                           if limit.marginal is not None else {}))
         return self._keep(nodeid, m, run)
 
     def _keep(self, nodeid: str, m: Measurement, run: RunResult | None) -> Measurement:
@@ -704,7 +716,9 @@ class QualificationSession:
             "suites": sorted(_wanted_suites(self.suites)),
             "versions": versions(),
             "limits": {name: {"low": lim.low, "high": lim.high,
-                              "unit": MEASUREMENTS[name].unit}
+                              "unit": MEASUREMENTS[name].unit,
+                              **({"when": [c.to_dict() for c in lim.cases]} if lim.cases
+                                 else {})}
                        for name, lim in self.profile.limits.items()},
             "measurements": self.measurements,
             "tests": self.tests,

@@ -14,7 +14,8 @@ profile never starts a run. Layout (``dut_profiles/<rig>-<controller>-<kind>.tom
     [wiring]      node_id, heartbeat_id, command_ids, database, binding
     [timing]      control_period_ms, heartbeat_period_ms, max_frames_per_period
     [parameters]  name = number | string | bool, handed to the controller
-    [limits]      "measurement.name" = { low = …, high = … }
+    [limits]      "measurement.name" = { low = …, high = …, when = [ { condition = …,
+                  high = … }, … ] } (``when``: per-condition limits, first match wins)
     [rig]         overrides of the rig's packaged config for this DUT's installation, e.g.
                   ``flow_sensor = { mode = "sliding" }``: checked by the rig's own loader,
                   applied to every run of this DUT (and recorded in each run's record)
@@ -38,9 +39,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from hil.condition_limits import ConditionCase, check_band, check_names
 from hil.config import check_positive, from_mapping, key_text
 from hil.errors import ConfigError
-from hil.limits import known_measurement, measurement_names
+from hil.limits import (
+    MEASUREMENTS,
+    condition_kinds_of,
+    is_conformance,
+    known_measurement,
+    measurement_names,
+)
 from hil.validation import check_key
 
 Kind = Literal["firmware", "daemon", "inprocess", "physical"]
@@ -250,28 +258,36 @@ class Limit:
     Parameters
     ----------
     low, high : float, optional
-        The limits, in the measurement's unit; at least one, ``low <= high``.
+        The limits, in the measurement's unit; ``low <= high``.
     marginal : float, optional
         A pass closer than this to a limit is flagged marginal (in the measurement's unit;
         default: 5 % of the span for two-sided limits, 1 % of the limit for one-sided ones).
+    when : tuple of tables, optional
+        Per-condition limits, tried in order: each a table of conditions (the measurement's
+        condition names, each with a value or an array of values) and its own ``low``,
+        ``high``, ``marginal``, e.g. ``{ to_mm = 20, high = 2.0 }``; the first whose
+        conditions all match gives the limit, else ``low``/``high`` apply (else the catalogue's
+        default). Parsed into ``cases`` (:class:`hil.condition_limits.ConditionCase`).
 
     Raises
     ------
     ValueError
-        Neither limit given, ``low`` above ``high``, or a negative ``marginal``.
+        Neither a limit nor a case given, ``low`` above ``high``, a negative ``marginal``, or a
+        case that is not a table of conditions with ``low`` or ``high``.
     """
 
     low: float | None = None
     high: float | None = None
     marginal: float | None = None
+    when: tuple[dict[str, Any], ...] = field(default=(), compare=False, repr=False)
+    cases: tuple[ConditionCase, ...] = field(init=False, default=())
 
     def __post_init__(self) -> None:
-        if self.low is None and self.high is None:
-            raise ValueError("a limit needs low, high or both")
-        if self.low is not None and self.high is not None and self.low > self.high:
-            raise ValueError(f"low {self.low} is above high {self.high}")
-        if self.marginal is not None and self.marginal < 0:
-            raise ValueError(f"marginal must be >= 0, got {self.marginal}")
+        if self.low is None and self.high is None and not self.when:
+            raise ValueError("a limit needs low, high, when or a combination")
+        check_band(self.low, self.high, self.marginal)
+        object.__setattr__(self, "cases", tuple(
+            ConditionCase.parse(table, key=f"when[{i}]") for i, table in enumerate(self.when)))
 
 
 @dataclass(frozen=True)
@@ -623,9 +639,29 @@ def _check(profile: DutProfile, path: str) -> None:
             raise ConfigError(f"parameter names are lower_snake_case, got {name!r}",
                               path=path, key=f"parameters.{key_text(name)}")
         del value
-    for name in profile.limits:
+    for name, limit in profile.limits.items():
         if not known_measurement(name, rig):
             raise ConfigError(
                 f"unknown measurement (the {rig} suites measure: "
                 f"{', '.join(measurement_names(rig))})", path=path,
                 key=f"limits.{key_text(name)}")
+        _check_cases(name, limit, path)
+
+
+def _check_cases(name: str, limit: Limit, path: str) -> None:
+    """``when`` cases must name conditions the measurement carries, with values of their kind.
+
+    As the catalogue knows them; where it does not, recording the measurement checks them.
+    """
+    if not limit.cases:
+        return
+    key = f"limits.{key_text(name)}"
+    if is_conformance(name):
+        raise ConfigError("a bus conformance check takes one limit (low, high), not per "
+                          "condition: remove 'when'", path=path, key=f"{key}.when")
+    spec = MEASUREMENTS[name]
+    if spec.conditions is None:
+        return
+    bad = check_names(limit.cases, condition_kinds_of(spec), what=name)
+    if bad:
+        raise ConfigError(bad[1], path=path, key=f"{key}.{bad[0]}")
