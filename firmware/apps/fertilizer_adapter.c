@@ -31,6 +31,7 @@ void fert_init(fert_adapter_t *a, const fert_config_t *cfg)
     memset(a, 0, sizeof *a);
     a->cfg = *cfg;
     a->active_mode = -1;
+    a->rows_follow_setpoint = true;
     ppid_reset(&a->core);
 }
 
@@ -174,8 +175,16 @@ size_t fert_step(fert_adapter_t *a, double now_s, hal_can_frame_t out[FERT_MAX_O
     double sum = 0.0;
     int valid = 0;
     bool fresh_valid = false;
+    /* rows 1..ActiveRows meter; the others' clutches are out (their modules read 0) */
+    int active = a->rows_follow_setpoint && a->setpoint.seen && a->setpoint.active_rows > 0
+                     ? (int)a->setpoint.active_rows
+                     : FERT_ROWS;
     for (int i = 0; i < FERT_ROWS; i++) {
         fert_row_t *r = &a->rows[i];
+        if (i >= active) {
+            r->reported = false;
+            continue;
+        }
         bool ok = r->seen && r->baseline_ready && !r->overrange &&
                   now_s - r->at_s <= a->cfg.stale_after_s + STALE_SLACK_S &&
                   r->flow_gps <= 3.0 * q + 5.0;

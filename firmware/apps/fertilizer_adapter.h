@@ -78,6 +78,9 @@ typedef struct {
     fert_speed_t speed[3]; /* by SpeedSource */
     uint32_t steps;
     fert_step_info_t last;
+    /* FertSetpoint.ActiveRows = N: only rows 1..N's modules count (the others' clutches are
+     * out). An ISOBUS implement clears it: its sections say which rows count. */
+    bool rows_follow_setpoint;
 } fert_adapter_t;
 
 void fert_config_defaults(fert_config_t *cfg, ppid_law_t law);

@@ -281,6 +281,7 @@ int iso_fert_init(iso_fert_t *c, const iso_fert_config_t *cfg)
     memset(c, 0, sizeof *c);
     c->cfg = *cfg;
     fert_init(&c->adapter, &cfg->fert);
+    c->adapter.rows_follow_setpoint = false; /* the sections say which rows' modules count */
     c->name = implement_name((uint32_t)cfg->identity_number);
     c->row_width_m = cfg->width_m / FERT_ROWS;
     c->work_state = -1;

@@ -195,6 +195,10 @@ class FlowController(Controller):
             return 0.1 * sp["TargetRate"] * sp["WorkingWidth"] * speed / rows
         return float(sp.get("TargetFlow", 0.0))
 
+    def setpoint_rows(self) -> int:
+        """FertSetpoint.ActiveRows: rows 1..N meter (4 until a setpoint says otherwise)."""
+        return max(1, int(self.setpoint.get("ActiveRows", 4)))
+
     def on_tick(self) -> list[can.Message]:
         """One free-running control step (a daemon's timer, not SYNC)."""
         return self.step()
@@ -207,7 +211,7 @@ class FlowController(Controller):
             if self.closed_loop is not None:
                 self.closed_loop.reset()
             self.active_mode = mode
-        m = self.rows.measure(target, self.steps)
+        m = self.rows.measure(target, self.steps, self.setpoint_rows())
         law = self.open_loop if (mode == MODE_CONSTANT or self.closed_loop is None) \
             else self.closed_loop
         self.volts, self.segment = law.step(target, m.measured_gps, m.has_measurement,

@@ -291,7 +291,10 @@ class SectionRows(FlowRows):
             del self.reports[row]
         self.active = set(active)
 
-    def measure(self, target_gps: float, step: int) -> Measurement:
+    def measure(self, target_gps: float, step: int,
+                active_rows: int | None = None) -> Measurement:
+        """The rows switched on by the TC count (:meth:`switch`); FertSetpoint's
+        ``active_rows`` is not listened to."""
         self.last = super().measure(target_gps, step)
         return self.last
 

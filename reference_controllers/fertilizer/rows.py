@@ -50,13 +50,19 @@ class FlowRows:
                 and step - r.arrived_step <= self.stale_after_steps + 1e-9
                 and r.flow_gps <= 3.0 * target_gps + 5.0)
 
-    def measure(self, target_gps: float, step: int) -> Measurement:
-        """The core's sensor inputs at step ``step`` (rows in ascending order)."""
+    def measure(self, target_gps: float, step: int,
+                active_rows: int | None = None) -> Measurement:
+        """The core's sensor inputs at step ``step`` (rows in ascending order). With
+        ``active_rows`` = N (FertSetpoint.ActiveRows) only rows 1..N count: the others'
+        clutches are out and their modules read the 0 g/s of a stopped roller."""
         total = 0.0
         count = 0
         new = False
         for row in sorted(self.reports):
             r = self.reports[row]
+            if active_rows is not None and row > active_rows:
+                r.fresh = False
+                continue
             if self.valid(r, target_gps, step):
                 total += r.flow_gps
                 count += 1
