@@ -222,9 +222,10 @@ _SPECS = (
                     "flow's change: a controller following speed through a lag of tau reads "
                     "tau", high=_TRANSIENT_LAG_LIMIT_S, conditions=("transients",)),
     MeasurementSpec("flow.rows.applied_accuracy", "%", "fertilizer",
-                    "[F] eq. 15 of a row's mass laid while the terminal's ActiveRows has it on, "
-                    "against its share of the rows' total target (split by the rollers' "
-                    "gains); conditions row, scenario", low=_ROWS_ACCURACY_LIMIT_PCT,
+                    "[F] eq. 15 of a row's mass laid while the terminal's ActiveRows has it on "
+                    "(under the TC: while its ground needs applying), against its share of "
+                    "the rows' total target (split by the rollers' gains); conditions row, "
+                    "scenario", low=_ROWS_ACCURACY_LIMIT_PCT,
                     conditions=("row", "scenario")),
     MeasurementSpec("flow.comparison.accuracy_gain", "pp", "fertilizer",
                     "bench accuracy of the DUT minus that of the constant-speed baseline",

@@ -23,7 +23,9 @@ from typing import Any
 import numpy as np
 import pytest
 
+from hil.isobus.field.laid import SAMPLE_S
 from hil.metrics.application_map import cell_accuracy, section_switching, transition_distances
+from hil.metrics.rows import applied_per_row
 from hil.rig import RunResult
 from plant_emulators.fertilizer.config import load_rig_config
 from test_suites.fertilizer.field_truth import FieldArrays, FieldTruth
@@ -165,6 +167,25 @@ def test_section_switching(hil_run, hil_measure) -> None:
                          f"{worst.direction} {worst.error_m:+.2f} m; run totals: overlap "
                          f"{sw.overlap_m:.2f} m, skip {sw.skip_m:.2f} m, "
                          f"{sw.spurious_switches} switches where none was needed")
+
+
+def test_rows(hil_run, hil_measure) -> None:
+    """Each row against its own share of the map where its ground needed applying: the
+    switched rows' measurement of the terminal's runs (hil.metrics.rows), with the TC's
+    sections as the rule of which rows should meter."""
+    result = hil_run("isobus-field")
+    truth = FieldTruth(result)
+    a, laid = truth.arrays, truth.laid
+    delivered = np.vstack([np.zeros((1, truth.rows)), np.cumsum(laid.mass_g[:-1], axis=0)])
+    # g/s each row should lay: the map's kg/ha over the strip it crosses per sample
+    target = np.where(a.needed, a.prescribed / 10.0 * laid.area_m2 / SAMPLE_S, 0.0)
+    rows = applied_per_row(a.t_s, delivered, target, a.needed, transport_s=0.0,
+                           row_gain=np.asarray(result.record["truth"]["row_gain"]))
+    for row, (accuracy, off) in enumerate(zip(rows.accuracy_pct, rows.off_delivery_g,
+                                              strict=True), start=1):
+        hil_measure("flow.rows.applied_accuracy", accuracy,
+                    conditions={"scenario": "isobus-field", "row": row}, run=result,
+                    note=f"{off:.1f} g laid where its ground did not need it")
 
 
 # --------------------------------------------------------------------- the TC fails
