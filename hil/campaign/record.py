@@ -93,6 +93,9 @@ def check_campaign_fields(doc: dict[str, Any], *, path: str) -> None:
     summary.string("reason")
     for i, item in enumerate(top.array("samples")):
         sample = Fields(item, path=path, prefix=f"samples[{i}]")
+        index = sample.data.get("index")
+        if isinstance(index, bool) or not isinstance(index, int) or index < 0:
+            raise sample.error("index", f"expected an integer >= 0, got {index!r}")
         sample_verdict = sample.string("verdict")
         if sample_verdict not in SAMPLE_VERDICTS:
             raise sample.error("verdict", f"{sample_verdict!r} is not one of "

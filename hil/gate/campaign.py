@@ -17,7 +17,6 @@ the legitimate-change part remains: ``shift_fraction`` (default 0.25) of the ban
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -94,15 +93,17 @@ def welch_moments_p(new: Moments, base: Moments, threshold: float) -> float:
     """:func:`welch_shift_p` from each side's count, mean and variance (all the test needs,
     and all a compact baseline keeps)."""
     n1, n2 = new.n, base.n
-    d = new.mean - base.mean
-    v1 = new.var / n1 if n1 > 1 else 0.0
-    v2 = base.var / n2 if n2 > 1 else 0.0
+    # numpy floats: an absurd value (a hand-edited baseline) overflows to inf, not an error
+    d = np.float64(new.mean) - np.float64(base.mean)
+    v1 = np.float64(new.var) / n1 if n1 > 1 else np.float64(0.0)
+    v2 = np.float64(base.var) / n2 if n2 > 1 else np.float64(0.0)
     se2 = v1 + v2
     if se2 == 0.0:
         return 0.0 if d > threshold else 1.0
-    df = se2 ** 2 / ((v1 ** 2 / (n1 - 1) if n1 > 1 else 0.0)
-                     + (v2 ** 2 / (n2 - 1) if n2 > 1 else 0.0))
-    return float(student_t.sf((d - threshold) / math.sqrt(se2), df))
+    with np.errstate(over="ignore", invalid="ignore"):
+        df = se2 * se2 / ((v1 * v1 / (n1 - 1) if n1 > 1 else 0.0)
+                          + (v2 * v2 / (n2 - 1) if n2 > 1 else 0.0))
+        return float(student_t.sf((d - threshold) / np.sqrt(se2), df))
 
 
 def _baseline_stats(baseline: dict[str, Any]) -> dict[str, SideStats]:

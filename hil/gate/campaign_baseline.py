@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from hil.campaign.record import clean
 from hil.gate.jsonfile import Fields
 from hil.gate.keys import measurement_key
 
@@ -161,7 +162,7 @@ def compact_baseline(doc: Mapping[str, Any], *, created_at: str) -> dict[str, An
     summary = doc["summary"]
     dispersion = doc.get("dispersion")
     rig = doc.get("rig")
-    return {
+    return clean({      # an overflowed moment (inf) is no number: null
         "schema": SCHEMA,
         "dut": {k: _relative(v) if k == "profile" else v for k, v in doc["dut"].items()
                 if k != "parameters"},
@@ -179,7 +180,7 @@ def compact_baseline(doc: Mapping[str, Any], *, created_at: str) -> dict[str, An
         "requirement": doc.get("requirement"),
         "summary": {k: summary[k] for k in ("judged", "passed", "failed", "errors", "verdict")},
         "measurements": measurements,
-    }
+    })
 
 
 def _relative(path: Any) -> Any:
@@ -219,6 +220,8 @@ def load_compact(doc: Any, *, path: str) -> dict[str, Any]:
                                   f"conditions")
         for field in ("low", "high", "mean", "sd", "mean_abs"):
             m.number(field)
+        if (m.number("sd") or 0.0) < 0:
+            raise m.error("sd", f"a standard deviation is >= 0, got {m.data['sd']!r}")
         for field in ("n", "not_computed", "passed"):
             count = m.data.get(field)
             if isinstance(count, bool) or not isinstance(count, int) or count < 0:
@@ -229,7 +232,8 @@ def load_compact(doc: Any, *, path: str) -> dict[str, Any]:
         if m.data.get("worse") is not None:
             w = m.child("worse")
             w.number("mean", nullable=False)
-            w.number("sd", nullable=False)
+            if (w.number("sd", nullable=False) or 0.0) < 0:
+                raise w.error("sd", f"a standard deviation is >= 0, got {w.data['sd']!r}")
             if not isinstance(w.data.get("n"), int) or w.data["n"] < 1:
                 raise w.error("n", f"expected an integer >= 1, got {w.data.get('n')!r}")
     return dict(doc) | {"_path": path}
@@ -239,10 +243,11 @@ def stats_from_compact(doc: Mapping[str, Any]) -> dict[str, SideStats]:
     out = {}
     for key, m in doc["measurements"].items():
         computed = m["n"] - m["not_computed"]
-        vm = (Moments(computed, m["mean"], (m["sd"] or 0.0) ** 2)
+        sd = m["sd"] or 0.0
+        vm = (Moments(computed, m["mean"], sd * sd)
               if computed and m["mean"] is not None else None)
         w = m.get("worse")
-        wm = Moments(w["n"], w["mean"], w["sd"] ** 2) if w else None
+        wm = Moments(w["n"], w["mean"], w["sd"] * w["sd"]) if w else None
         out[key] = SideStats(name=m["name"], low=m["low"], high=m["high"], n=m["n"],
                              not_computed=m["not_computed"], mean=m["mean"],
                              mean_abs=m["mean_abs"], value_moments=vm, worse_moments=wm)

@@ -49,7 +49,7 @@ def requirement_of(doc: Mapping[str, Any], *, path: str) -> dict[str, float] | N
     profile key's range; :class:`ConfigError` naming the file and the key otherwise."""
     if doc.get("requirement") is None:
         return None
-    from hil.validation import PROFILE_RANGES
+    from hil.validation import PROFILE_RANGES, check_value
 
     req = Fields(doc["requirement"], path=path, prefix="requirement")
     out: dict[str, float] = {}
@@ -58,9 +58,10 @@ def requirement_of(doc: Mapping[str, Any], *, path: str) -> dict[str, float] | N
                            nullable=False)
         if value is None:
             continue
-        if not PROFILE_RANGES[f"campaign.{name}"].contains(value):
-            raise req.error(name, f"must be {PROFILE_RANGES[f'campaign.{name}'].describe()}, "
-                                  f"got {value!r}")
+        try:
+            check_value(value, PROFILE_RANGES[f"campaign.{name}"], what=name)
+        except ValueError as exc:
+            raise req.error(name, str(exc)) from exc
         out[name] = value
     return out
 

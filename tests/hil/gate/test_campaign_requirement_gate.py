@@ -178,3 +178,29 @@ def test_a_damaged_compact_baseline_is_refused_or_judged_never_a_traceback(
     assert outcome.code in (0, 1, 2, 3), (what, outcome)
     if outcome.code == 2:
         assert len(outcome.error_lines()) == 1 and path.name in outcome.stderr, (what, outcome)
+
+
+FUZZ_RECORD = ROOT / "tests" / "fuzz" / "data" / "campaign.json"
+
+
+@pytest.mark.parametrize(("where", "value", "key"), [
+    ("requirement", "x", "[requirement]"),
+    ("requirement", {"pass_probability": 2, "confidence": 0.9},
+     "[requirement.pass_probability] pass_probability must be a number 0 < x < 1"),
+    ("decision", [], "[decision]"),
+    ("decision", {"rule": "zz"}, "[decision.rule]"),
+    ("decision", {"rule": "sequential"}, "[requirement.sequential_good_probability]"),
+    ("samples.0.index", None, "[samples[0].index]"),
+])
+def test_a_damaged_requirement_or_decision_is_refused_naming_the_key(
+        tmp_path: Path, where: str, value: object, key: str) -> None:
+    doc = json.loads(FUZZ_RECORD.read_text())
+    if where == "samples.0.index":
+        del doc["samples"][0]["index"]
+    else:
+        doc[where] = value
+    path = tmp_path / "campaign.json"
+    path.write_text(json.dumps(doc))
+    outcome = run_cli("gate", str(path))
+    assert outcome.code == 2 and key in outcome.stderr and str(path) in outcome.stderr, outcome
+    assert len(outcome.error_lines()) == 1
