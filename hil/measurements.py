@@ -82,5 +82,4 @@ class Measurement:
         value = None if isinstance(self.value, float) and math.isnan(self.value) else self.value
         return {"name": self.name, "value": value, "unit": self.unit, "low": self.low,
                 "high": self.high, "conditions": self.conditions, "outcome": self.outcome.value,
-                "marginal": self.marginal, "note": self.note,
-                **({"limit_source": self.limit_source} if self.limit_source else {})}
+                "marginal": self.marginal, "note": self.note, "limit_source": self.limit_source}

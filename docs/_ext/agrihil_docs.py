@@ -4,7 +4,8 @@
     Every measurement of ``hil/limits.py`` for one rig (``:rig:``): name, unit, definition, the
     default limit a qualification judges it against when the DUT's profile sets none
     (``hil.limits.default_limit_text``), and the limit the rig's reference profile sets (the
-    limits a new profile usually starts from).
+    limits a new profile usually starts from); per-condition limits as such
+    (``to_mm=20: <= 2; otherwise <= 3``), and the conditions each measurement carries.
 ``pytest-plugin-options``
     The ``--hil-*`` options of the pytest plugin, read from its ``pytest_addoption``.
 """
@@ -42,16 +43,24 @@ def _table(header: list[str], rows: list[list[str]]) -> list[str]:
 
 
 def _limit_text(limit: Any) -> str:
+    """The profile's limit in words, its per-condition cases first (``to_mm=20: <= 2``)."""
+    from hil.limits import limit_text
+
     if limit is None:
         return "not set: the default applies"
-    parts = []
-    if limit.low is not None:
-        parts.append(f">= {limit.low:g}")
-    if limit.high is not None:
-        parts.append(f"<= {limit.high:g}")
+    text = limit_text(limit.low, limit.high, limit.cases, otherwise="the default")
     if getattr(limit, "marginal", None) is not None:
-        parts.append(f"(marginal band {limit.marginal:g})")
-    return " ".join(parts) or "not set: the default applies"
+        text += f" (marginal band {limit.marginal:g})"
+    return text
+
+
+def _definition(spec: Any) -> str:
+    """The measurement's definition and the conditions it carries (what ``when`` may name)."""
+    if spec.conditions is None:
+        return spec.description
+    if not spec.conditions:
+        return f"{spec.description} (no conditions)"
+    return f"{spec.description} (conditions: {', '.join(spec.conditions)})"
 
 
 class _Generated(SphinxDirective):
@@ -76,7 +85,7 @@ class MeasurementCatalogue(_Generated):
         self.env.note_dependency(str(profile_path))
         self.env.note_dependency(str(ROOT / "hil" / "limits.py"))
         profile = load_profile(profile_path)
-        rows = [[f"`{spec.name}`", spec.unit, spec.description, default_limit_text(name),
+        rows = [[f"`{spec.name}`", spec.unit, _definition(spec), default_limit_text(name),
                  _limit_text(profile.limit(name))]
                 for name, spec in MEASUREMENTS.items() if spec.rig in (rig, "*")]
         return self._emit(_table(["measurement", "unit", "definition",

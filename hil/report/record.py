@@ -49,6 +49,15 @@ class MeasurementRow:
     note: str
     test: str
     run: str
+    #: which limit applied (:attr:`hil.measurements.Measurement.limit_source`)
+    limit_source: str = ""
+
+    @property
+    def per_condition(self) -> str:
+        """For a limit stated for these conditions only, whose it is and under which
+        conditions (``profile: to_mm=20``); empty for a limit of every condition."""
+        layer, _, rest = self.limit_source.partition(" (")
+        return f"{layer}: {rest[:-1]}" if rest.endswith(")") else ""
 
     @property
     def status(self) -> str:
@@ -166,7 +175,8 @@ def _measurement(d: dict[str, Any]) -> MeasurementRow:
         high=_float_or_none(d.get("high")),
         conditions=conditions if isinstance(conditions, dict) else {},
         outcome=_text(d.get("outcome")) or "error", marginal=bool(d.get("marginal")),
-        note=_text(d.get("note")), test=_text(d.get("test")), run=_text(d.get("run")))
+        note=_text(d.get("note")), test=_text(d.get("test")), run=_text(d.get("run")),
+        limit_source=_text(d.get("limit_source")))
 
 
 def load_qualification(qual_dir: Path) -> QualRecord:

@@ -15,12 +15,13 @@ MAX_REASONS = 8
 
 
 def _limit_text(m: MeasurementRow) -> str:
+    at = f" ({m.per_condition})" if m.per_condition else ""
     if m.low is not None and m.high is not None:
-        return f"limits {fmt_num(m.low)} to {fmt_num(m.high)}"
+        return f"limits {fmt_num(m.low)} to {fmt_num(m.high)}{at}"
     if m.high is not None:
-        return f"limit ≤ {fmt_num(m.high)}"
+        return f"limit ≤ {fmt_num(m.high)}{at}"
     if m.low is not None:
-        return f"limit ≥ {fmt_num(m.low)}"
+        return f"limit ≥ {fmt_num(m.low)}{at}"
     return "no limit"
 
 

@@ -42,8 +42,17 @@ def _measurement_row(m: MeasurementRow, anchors: dict[str, str]) -> str:
         run = f'<a href="#{esc(anchor)}">{label}</a>' if anchor else label
     cells = [name, esc(m.conditions_label) or DASH,
              f'<span class="num">{esc(fmt_num(m.value))}</span>', esc(m.unit),
-             esc(fmt_num(m.low)), esc(fmt_num(m.high)), _outcome_badge(m), run]
+             *_limit_cells(m), _outcome_badge(m), run]
     return row(cells, f"m-{m.status}")
+
+
+def _limit_cells(m: MeasurementRow) -> list[str]:
+    """The low and high cells; a limit stated for these conditions only says so under it."""
+    cells = [esc(fmt_num(m.low)), esc(fmt_num(m.high))]
+    if m.per_condition:
+        at = 1 if m.high is not None or m.low is None else 0
+        cells[at] += f'<div class="small">per condition ({esc(m.per_condition)})</div>'
+    return cells
 
 
 def _group_rank(ms: list[MeasurementRow]) -> int:
