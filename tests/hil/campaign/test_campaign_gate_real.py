@@ -64,7 +64,8 @@ def test_campaign_gate_flags_a_one_percent_sensor_error_single_gate_cannot(
     worse = _run(_worse_profile(tmp_path), tmp_path / "worse", seed=1000)
 
     # the campaign gate: the unchanged build on other seeds passes; the worse build regresses
-    assert compare_campaigns(same, baseline, tolerances).verdict == "pass"
+    # (16 samples cannot demonstrate the profile's 0.975: inconclusive, but no regression)
+    assert compare_campaigns(same, baseline, tolerances).verdict == "inconclusive"
     flagged = compare_campaigns(worse, baseline, tolerances)
     assert flagged.verdict == "fail"
     assert {r.name for r in flagged.regressions} == {"flow.field.accuracy"}

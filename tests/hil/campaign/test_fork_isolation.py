@@ -23,7 +23,7 @@ def _campaign(out: Path, isolation: str) -> dict:
                  "--samples", "2", "--seed", "21", "-k", "test_flow_step and 23",
                  "--dispersion", "none", "--max-reruns", "0", "--no-progress",
                  "--isolation", isolation, "--out", str(out)])
-    assert code == 0
+    assert code == 3      # inconclusive: two samples cannot demonstrate the profile's 0.975
     return json.loads((out / "campaign.json").read_text())
 
 
