@@ -32,7 +32,7 @@ from hil.cli.args import (
 )
 from hil.cli.phases import phase
 from hil.errors import ConfigError
-from hil.record.staging import Staging, signals_held
+from hil.record.staging import Staging, is_storage_error, signals_held
 from hil.validation import help_with_range, option_type
 
 #: exit status by verdict; inconclusive (the samples neither demonstrate the requirement nor
@@ -210,6 +210,7 @@ def _campaign(args: argparse.Namespace) -> int:
         build_dir = Path(str(build["build_dir"])) if build.get("build_dir") else None
     if args.scheduler is None:
         check_launchable(profile, bus=args.bus, clock=args.clock, build=build_dir)
+    phase("campaign:built")
     out = prepare_out_dir(args.out)
     staging = Staging(out, prefix=STAGING_PREFIX, outputs=OUTPUTS, record=RECORD_NAME)
     engine = ({"kind": "scheduler", "address": args.scheduler} if args.scheduler else
@@ -229,6 +230,7 @@ def _campaign(args: argparse.Namespace) -> int:
     # leaves the previous one as it was
     with dask_client(workers=args.workers, scheduler=args.scheduler,
                      connect_timeout_s=args.connect_timeout_s) as client:
+        phase("campaign:cluster")
         engine["workers"] = len(client.scheduler_info().get("workers", {}))
         try:
             # campaign.json says "running" until it is not (the previous one kept as
@@ -360,6 +362,8 @@ def _write_report(out: Path) -> None:
     try:
         write_campaign_html(out)
     except Exception as exc:  # the record is written; say loudly the page is not
+        if is_storage_error(exc):
+            raise                # a disk that refuses a write is exit 2 naming --out
         print(f"hil: report.html not written: {exc}", file=sys.stderr)
 
 

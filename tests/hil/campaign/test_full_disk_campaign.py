@@ -64,10 +64,6 @@ def test_a_full_tmpfs_names_the_path_and_keeps_the_previous_campaign(tmp_path: P
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="hil/cli/campaign.py _write_report prints 'report.html "
-                                       "not written' for any exception and the campaign ends "
-                                       "by its verdict (exit 3) with the report missing; a "
-                                       "disk's refusal must go on to staging.writing()")
 def test_a_file_size_limit_names_the_path_and_keeps_the_previous_campaign(
         tmp_path: Path) -> None:
     out = tmp_path / "c"

@@ -48,9 +48,6 @@ def _clean_130(done: subprocess.CompletedProcess[str]) -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="hil campaign has no phase mark before --out is "
-                                       "touched: campaign:built and campaign:cluster "
-                                       "(hil/cli/campaign.py, owned by another change)")
 @pytest.mark.parametrize("at", ["campaign:built", "campaign:cluster"])
 def test_ctrl_c_during_set_up_leaves_out_as_it_was(tmp_path: Path, at: str) -> None:
     out = tmp_path / "c"
