@@ -32,6 +32,7 @@ from hil.cli.args import (
 )
 from hil.cli.phases import phase
 from hil.errors import ConfigError
+from hil.limits import is_conformance
 from hil.record.staging import Staging, is_storage_error, signals_held
 from hil.validation import help_with_range, option_type
 
@@ -340,7 +341,7 @@ def _rerun(campaign: Any, client: Any, out: Path) -> None:
             # the rerun's bus conformance needs its bus log, which the measurements-only
             # sample did not keep: every other measurement must be the sample's, bit for bit
             "reproduced": same_measurements(
-                [m for m in sample["measurements"] if not m["name"].startswith("bus.")],
+                [m for m in sample["measurements"] if not is_conformance(m["name"])],
                 original.get("measurements", []))})
     map_samples(client, list(tasks.values()), on_rerun,
                 prefix=f"agrihil-{plan.campaign_id}-rerun")
