@@ -12,12 +12,21 @@ import re
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from hil.cli.main import main
-from hil.condition_limits import ConditionCase, select, when
+from hil.condition_limits import BAND_KEYS, ConditionCase, select, when
+from hil.config import from_mapping
 from hil.dut.profile import Limit, load_profile
 from hil.errors import ConfigError
-from hil.limits import MEASUREMENTS, MeasurementSpec, applied_limit, default_limit_text
+from hil.limits import (
+    CONDITIONS,
+    MEASUREMENTS,
+    MeasurementSpec,
+    applied_limit,
+    default_limit_text,
+)
 from hil.pytest_plugin import QualificationSession
 from hil.report.record import MeasurementRow
 from hil.report.sections_head import _limit_text as head_limit_text
@@ -122,6 +131,7 @@ def test_catalogue_cases_apply_when_the_profile_sets_none(monkeypatch) -> None:
 
 
 def test_catalogue_cases_must_name_its_declared_conditions() -> None:
+    assert not set(CONDITIONS) & set(BAND_KEYS)      # a condition "high" could not be named
     with pytest.raises(ValueError, match="no condition 'target_mm'"):
         MeasurementSpec("x", "mm", "sowing_depth", "", conditions=("to_mm",),
                         cases=(when({"target_mm": 20}, high=2.0),))
@@ -282,3 +292,28 @@ def test_the_catalogue_page_prints_cases_and_conditions(tmp_path: Path) -> None:
     assert _definition(MEASUREMENTS[TRUE_DEPTH]).endswith("(conditions: from_mm, to_mm)")
     assert _definition(MEASUREMENTS["depth.fault.speed_loss.rod_travel"]).endswith(
         "(no conditions)")
+
+
+# --- any [limits] entry is used or refused, never a traceback -----------------------------------
+_SCALARS = st.one_of(st.booleans(), st.integers(-10**20, 10**20),
+                     st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=5),
+                     st.dates(), st.none())
+_VALUES = st.recursive(_SCALARS, lambda inner: st.lists(inner, max_size=3)
+                       | st.dictionaries(st.text(max_size=4), inner, max_size=3), max_leaves=8)
+_KEYS = st.sampled_from(["low", "high", "marginal", "to_mm", "from_mm", "zone", "node", ""])
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.dictionaries(st.sampled_from(["low", "high", "marginal", "when"]),
+                       st.one_of(_VALUES, st.lists(st.dictionaries(_KEYS, _VALUES, max_size=4),
+                                                   max_size=3)), max_size=4))
+def test_any_limits_entry_is_used_or_refused_naming_its_key(entry: dict) -> None:
+    data = {k: v for k, v in entry.items() if v is not None}
+    try:
+        limit = from_mapping(Limit, data, path="p.toml", prefix=f"limits.{TRUE_DEPTH}")
+    except ConfigError as exc:
+        assert exc.path == "p.toml" and (exc.key or "").startswith(f"limits.{TRUE_DEPTH}")
+        return
+    conditions = {"from_mm": 30.0, "to_mm": 20.0}
+    applied = applied_limit(TRUE_DEPTH, conditions, limit)
+    assert applied.problem or applied.low is not None or applied.high is not None
