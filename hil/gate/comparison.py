@@ -245,7 +245,9 @@ def _record_notes(record: QualificationRecord, baseline: Baseline | None) -> lis
                      f"{', '.join(unchecked)}")
     for m in record.measurements:
         declared = record.limits.get(m.name)
-        if declared is not None and declared != (m.low, m.high):
+        # a per-condition case ("profile (to_mm=20)") has its own band, not the entry's
+        per_case = m.limit_source not in ("", "profile")
+        if declared is not None and not per_case and declared != (m.low, m.high):
             notes.append(f"{m.key}: its limits {_limits(m.low, m.high)} differ from the "
                          f"record's limits table {_limits(*declared)}")
     if baseline is not None:

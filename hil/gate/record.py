@@ -73,6 +73,9 @@ class RecordMeasurement:
     note: str = ""
     test: str = ""
     index: int = 0
+    #: which limit applied: "profile", "profile (cond=value)" for a per-condition case,
+    #: "catalogue" ... (empty in records older than per-condition limits)
+    limit_source: str = ""
 
     @property
     def key(self) -> str:
@@ -184,7 +187,7 @@ def _parse_measurement(item: Any, *, path: str, index: int) -> RecordMeasurement
         conditions=conditions, outcome=outcome,
         marginal=f.boolean("marginal", required=False),
         note=f.string("note", required=False), test=f.string("test", required=False),
-        index=index)
+        index=index, limit_source=f.string("limit_source", required=False))
 
 
 def _parse_limits(top: Fields) -> dict[str, tuple[float | None, float | None]]:

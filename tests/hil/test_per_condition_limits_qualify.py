@@ -50,3 +50,11 @@ def test_a_per_condition_limit_fails_its_condition_only(tmp_path: Path) -> None:
         {"conditions": {"target_gps": 34}, "low": None, "high": 0.3}]
     report = (tmp_path / "q" / "report.html").read_text(encoding="utf-8")
     assert "per condition (profile: target_gps=34)" in report
+    # the gate judges each condition by its own limit and says nothing of the entry's band
+    summary = tmp_path / "gate.md"
+    gate = subprocess.run([sys.executable, "-m", "hil", "gate", str(tmp_path / "q"
+                                                                     / "record.json"),
+                           "--summary", str(summary)],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert gate.returncode == 1, gate.stdout + gate.stderr
+    assert "limits table" not in summary.read_text(encoding="utf-8") + gate.stdout
