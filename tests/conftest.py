@@ -41,25 +41,26 @@ def no_leaked_softbus_threads() -> Iterator[None]:
 DOCS = "tests/test_docs_examples.py::test_doc_examples"
 
 #: test files or node ids (prefixes) that take 8 s or more, longest first, as measured with
-#: ``--durations`` on the project's 2-vCPU VMs on a quiet machine (the guest 37-57 s; a docs
-#: page's unit, tests/test_docs_examples.py, is ``page`` for its first block and ``page:LINE``
-#: for each further one). Of the docs units that make the same ``hil qualify`` (run once per
-#: session, the others copy it) only the first to run is listed, so the others find it done
-#: rather than wait for it.
+#: ``--durations`` on the project's 2-vCPU VMs on a quiet machine (the guest 37-57 s). A docs
+#: page is run as units, one test each (tests/test_docs_examples.py: ``[page]``, ``[page:LINE]``):
+#: a page named here puts all its units here, its long one (the comment) and its short ones, so
+#: that an edit of the page, which moves LINE, does not move them back. Of the pages whose units
+#: make the same ``hil qualify`` (run once per session, the others copy it) only the first to run
+#: is listed, so the others find it done rather than wait for it.
 LONGEST_FIRST = (
     "tests/kernel/test_guest.py",
-    f"{DOCS}[docs/getting-started/tour.md:31]",             # ~30 s: a depth firmware qualify
-    f"{DOCS}[docs/guide/campaigns.md]",                     # ~27 s: a campaign on 2 workers
-    f"{DOCS}[docs/guide/physical-ecu.md:31]",               # ~26 s in real time
+    # ~30 s: a depth firmware qualify; ~12 s: a must-fail one, shared with qualification.md
+    f"{DOCS}[docs/getting-started/tour.md",
+    f"{DOCS}[docs/guide/campaigns.md",                      # ~27 s: a campaign on 2 workers
+    f"{DOCS}[docs/guide/physical-ecu.md",                   # ~26 s in real time
     "tests/test_suites_depth_discrimination.py",            # 3 x ~19 s, 4 x ~6 s
-    f"{DOCS}[docs/getting-started/reading-a-report.md]",    # ~17 s
+    f"{DOCS}[docs/getting-started/reading-a-report.md",     # ~17 s
     "tests/hil/campaign/test_fork_isolation.py",            # ~15 s, ~5 s
-    f"{DOCS}[docs/guide/dut-profiles.md:60]",               # ~14 s, shared with 4 other units
-    f"{DOCS}[docs/guide/reference-qualification.md:354]",   # ~14 s
-    f"{DOCS}[docs/getting-started/tour.md:41]",             # ~12 s, shared with qualification
+    f"{DOCS}[docs/guide/dut-profiles.md",                   # ~14 s, shared with 4 other units
+    f"{DOCS}[docs/guide/reference-qualification.md",        # ~14 s
     "tests/hil/campaign/test_campaign_e2e.py",              # ~13 s
     "tests/test_discrimination.py",                         # 5 x 10-14 s
-    f"{DOCS}[docs/guide/writing-a-fertilizer-controller.md:212]",   # ~11 s
+    f"{DOCS}[docs/guide/writing-a-fertilizer-controller.md",  # ~11 s
     # builds the browser tests' two qualifications (~10 s) for the other 10
     "tests/browser/test_report_in_chromium.py::test_page_loads_without_console_errors[pass]",
     "tests/hil/reliability/test_signal_at_every_phase.py",

@@ -908,6 +908,19 @@ def test_units_keep_a_block_with_the_block_whose_output_it_reads() -> None:
         assert indices == list(range(len(blocks(doc)))), doc
 
 
+def test_docs_pages_listed_longest_first_exist() -> None:
+    """tests/conftest.py hands the units of the longest docs pages out first, by page: a page
+    that was renamed or lost its examples would silently stop being."""
+    from tests.conftest import DOCS as PREFIX
+    from tests.conftest import LONGEST_FIRST
+
+    ids = [f"{PREFIX}[{param.id}]" for param in unit_params()]  # type: ignore[attr-defined]
+    named = [entry for entry in LONGEST_FIRST if entry.startswith(f"{PREFIX}[")]
+    assert named, "tests/conftest.py names no docs page"
+    gone = [entry for entry in named if not any(i.startswith(entry) for i in ids)]
+    assert not gone, f"docs pages in tests/conftest.py LONGEST_FIRST without units: {gone}"
+
+
 def test_skip_table_is_current() -> None:
     """A skipped line that left its document is a stale entry (and hides nothing)."""
     present = {(doc, line.text) for doc in DOCS for block in blocks(doc)
