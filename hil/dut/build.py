@@ -103,9 +103,15 @@ def source_sha256(profile: DutProfile) -> str:
 
 
 def build_dir(profile: DutProfile, digest: str | None = None) -> Path:
-    """The cache entry of ``profile`` (``digest``: its :func:`source_sha256`, if known)."""
+    """The cache entry of ``profile`` (``digest``: its :func:`source_sha256`, if known).
+
+    Keyed by what the build is, not by whose: the digest covers the build command and every
+    source byte, so profiles that build the same tree with the same command (the rigs'
+    reference firmware, the examples built from ``firmware/``) share one build instead of
+    each making its own (a full firmware build: ~17 s on a loaded 2-core host).
+    """
     key = (digest or source_sha256(profile))[:16]
-    return cache_root() / "builds" / f"{profile.name}-{key}"
+    return cache_root() / "builds" / f"build-{key}"
 
 
 def expand(arg: str, profile: DutProfile, *, bus: str = "", build: Path | None = None) -> str:
