@@ -32,7 +32,10 @@ field = "{FIELDS / 'field-rect.geojson'}"
 prescription = "{FIELDS / 'rates-3zones.geojson'}"
 drive_after_s = 8.0
 """
-CASES = ["fertilizer-piecewise-pid-isobus-firmware",
+#: both slow (~15 s each in the guest): the default guest run already carries the C HAL and
+#: python-can's SocketCAN bus in lockstep (test_lockstep.py); an ISOBUS implement's whole
+#: qualification over vcan in the guest is run by hand (the closing note of issue 27)
+CASES = [pytest.param("fertilizer-piecewise-pid-isobus-firmware", marks=pytest.mark.slow),
          pytest.param("fertilizer-piecewise-pid-isobus-daemon", marks=pytest.mark.slow)]
 
 
