@@ -20,7 +20,9 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
+import errno
 import json
+import re
 import sys
 import time
 from pathlib import Path
@@ -247,8 +249,34 @@ def _run_suites(args: argparse.Namespace, profile: DutProfile, stage: Path) -> i
     print(f"hil: qualifying {profile.name} {profile.dut.version} on the {profile.dut.rig} rig "
           f"({args.bus}, {args.clock}, suites {args.suite})", file=sys.stderr)
     phase("qualify:suites")
-    return int(pytest.main(pytest_args(args, stage, profile.dut.rig),
+    code = int(pytest.main(pytest_args(args, stage, profile.dut.rig),
                            plugins=[PhaseMarks(), OneDuration()]))
+    _refuse_unwritten_runs(stage)
+    return code
+
+
+def _refuse_unwritten_runs(stage: Path) -> None:
+    """A run whose traces or bus logs the disk refused (its recorder noted it in its record's
+    ``recorder_problems``) makes the qualification a storage error, as a refused write of
+    the record does: exit 2 naming ``--out``, the staging removed, the previous record kept.
+
+    Raises
+    ------
+    OSError
+        With the refused write's errno (``[Errno N]`` in the note), else EIO.
+    """
+    for path in sorted((stage / "runs").rglob("record.json")) if (stage / "runs").is_dir() \
+            else ():
+        try:
+            problems = json.loads(path.read_text(encoding="utf-8")).get("recorder_problems")
+        except (OSError, ValueError):
+            continue
+        if problems:
+            text = "; ".join(map(str, problems))
+            found = re.search(r"\[Errno (\d+)\]", text)
+            code = int(found.group(1)) if found else errno.EIO
+            raise OSError(code, f"the files of run {path.parent.name} could not all be "
+                                f"written ({text})")
 
 
 def _print_summary(record: dict[str, Any], profile: DutProfile, out: Path, *,
