@@ -95,11 +95,14 @@ def test_every_must_fail_header_is_checked_here() -> None:
         assert must_fail_claims(MUST_FAIL / f"{name}.toml") <= set(expected) | slow, name
 
 
-def _qualify(profile: Path, out: Path, selection: str = SELECTION, suite: str | None = None,
-             bus: str = "inline") -> tuple[subprocess.CompletedProcess[str], dict[str, Any]]:
+def _qualify(profile: Path, out: Path, selection: str | None = SELECTION,
+             suite: str | None = None, bus: str = "inline",
+             ) -> tuple[subprocess.CompletedProcess[str], dict[str, Any]]:
+    """``hil qualify PROFILE`` in a subprocess (``-k selection`` unless None), its record."""
     proc = subprocess.run(
         [sys.executable, "-m", "hil", "qualify", str(profile), "--bus", bus,
-         "--out", str(out), "-k", selection, "--quiet", *(["--suite", suite] if suite else [])],
+         "--out", str(out), *(["-k", selection] if selection else []), "--quiet",
+         *(["--suite", suite] if suite else [])],
         capture_output=True, text=True, cwd=ROOT, timeout=600)
     record_path = out / "record.json"
     assert record_path.exists(), proc.stdout + proc.stderr

@@ -13,11 +13,11 @@ import json
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any
 
 import pytest
 
 from hil.dut.profile import load_profile, must_fail_claims
+from tests.test_discrimination import _qualify
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "dut_profiles" / "fertilizer-piecewise-pid-isobus-daemon.toml"
@@ -64,17 +64,6 @@ FAST_SUBSET = {"fertilizer-isobus-sends-before-claim-daemon",
                "fertilizer-isobus-holds-speed-daemon"}
 
 
-def _qualify(profile: Path, out: Path, selection: str | None = None,
-             ) -> tuple[subprocess.CompletedProcess[str], dict[str, Any]]:
-    proc = subprocess.run(
-        [sys.executable, "-m", "hil", "qualify", str(profile), "--bus", "inline",
-         "--out", str(out), "--quiet", *(["-k", selection] if selection else [])],
-        capture_output=True, text=True, cwd=ROOT, timeout=600)
-    record_path = out / "record.json"
-    assert record_path.exists(), proc.stdout + proc.stderr
-    return proc, json.loads(record_path.read_text())
-
-
 def test_every_isobus_must_fail_profile_is_checked_here_as_its_header_says() -> None:
     reference = load_profile(REFERENCE)
     profiles = sorted(MUST_FAIL.glob("fertilizer-isobus-*.toml"))
@@ -87,7 +76,7 @@ def test_every_isobus_must_fail_profile_is_checked_here_as_its_header_says() -> 
 
 
 def test_the_isobus_reference_qualifies_on_the_isobus_suite(tmp_path: Path) -> None:
-    proc, record = _qualify(REFERENCE, tmp_path / "q")
+    proc, record = _qualify(REFERENCE, tmp_path / "q", None)
     assert proc.returncode == 0 and record["verdict"] == "pass", proc.stdout + proc.stderr
     assert record["suites"] == ["isobus"]      # chosen for [wiring] isobus = true
     names = {m["name"] for m in record["measurements"]}
