@@ -23,18 +23,11 @@ import pytest
 
 from hil.metrics.rows import RowsApplied, applied_per_row
 from hil.rig import RunResult
-from plant_emulators.fertilizer.config import load_rig_config
+from test_suites.fertilizer.traces import transport_s
 
 pytestmark = [pytest.mark.hil_rig("fertilizer"), pytest.mark.hil_suite("robustness")]
 
 ROW_SCENARIOS = ("field-rows-headland", "field-rows-blocked")
-
-
-def transport_s(result: RunResult) -> float:
-    """Meter to furrow: what is metered now lands this much later."""
-    overrides = result.record.get("rig_config_overrides") or {}
-    t = load_rig_config(overrides=overrides, source="the run's rig_config_overrides").transport
-    return t.meter_to_sensor_delay_s + t.sensor_to_exit_delay_s
 
 
 def rows_applied(result: RunResult) -> RowsApplied:

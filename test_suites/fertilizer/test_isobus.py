@@ -27,8 +27,8 @@ from hil.isobus.field.laid import SAMPLE_S
 from hil.metrics.application_map import cell_accuracy, section_switching, transition_distances
 from hil.metrics.rows import applied_per_row
 from hil.rig import RunResult
-from plant_emulators.fertilizer.config import load_rig_config
 from test_suites.fertilizer.field_truth import FieldArrays, FieldTruth
+from test_suites.fertilizer.traces import transport_s
 
 pytestmark = [pytest.mark.hil_rig("fertilizer"), pytest.mark.hil_suite("isobus")]
 
@@ -45,13 +45,6 @@ TC_TIMEOUT_S = 6.0
 #: after a loss of the TECU's speed, the time a controller gets to notice it (three missed
 #: 100 ms messages) and act (one step), before what lands is judged (the transport is added)
 SPEED_LOSS_GRACE_S = 0.5
-
-
-def _transport_s(result: RunResult) -> float:
-    """Meter to furrow: what is metered now lands this much later."""
-    overrides = result.record.get("rig_config_overrides") or {}
-    t = load_rig_config(overrides=overrides, source="the run's rig_config_overrides").transport
-    return t.meter_to_sensor_delay_s + t.sensor_to_exit_delay_s
 
 
 def _fault_times(result: RunResult, name: str) -> tuple[float, float]:
@@ -193,7 +186,7 @@ def test_tc_restart(hil_run, hil_measure) -> None:
     result = hil_run("isobus-tc-restart")
     truth = FieldTruth(result)
     down, back = _fault_times(result, "tc_down")
-    noticed = down + TC_TIMEOUT_S + _transport_s(result)
+    noticed = down + TC_TIMEOUT_S + transport_s(result)
     grams = _delivered_between(result, noticed, back)
     hil_measure("isobus.tc.loss.delivered", grams, run=result,
                 note=f"laid from {noticed:.2f} s (6 s without the TC's status, plus the "
@@ -223,7 +216,7 @@ def test_speed_loss(hil_run, hil_measure) -> None:
     result = hil_run("isobus-speed-loss")
     a = FieldTruth(result).arrays
     lost, _ = _fault_times(result, "tecu_silent")
-    window = a.t_s >= lost + SPEED_LOSS_GRACE_S + _transport_s(result)
+    window = a.t_s >= lost + SPEED_LOSS_GRACE_S + transport_s(result)
     area = np.vstack([np.diff(a.distance_m, axis=0), np.zeros((1, a.distance_m.shape[1]))])
     area = area * a.width_m[None, :]
     # per row over the whole window: a fluted roller's pulsation swings a 0.1 s sample by

@@ -45,6 +45,13 @@ def delivered_and_target_g(result: RunResult) -> tuple[float, float]:
     return delivered, float(truth["target_mass_per_row_g"]) * rows
 
 
+def transport_s(result: RunResult) -> float:
+    """Meter to furrow in the run's rig: what is metered now lands this much later."""
+    overrides = result.record.get("rig_config_overrides") or {}
+    t = load_rig_config(overrides=overrides, source="the run's rig_config_overrides").transport
+    return t.meter_to_sensor_delay_s + t.sensor_to_exit_delay_s
+
+
 def flutes(result: RunResult) -> int:
     """The flutes per roller of the rig the run used (the packaged config and its overrides)."""
     overrides = result.record.get("rig_config_overrides") or {}
