@@ -2,8 +2,15 @@
 
 :func:`serve` opens a bus spec, puts a :class:`~hil.isobus.tractor.Tractor` (TECU and Task
 Controller) on it and drives the field path in real time, so an implement's developers can work
-against it interactively and an outside ISOBUS stack can be tested without a qualification. It
-writes, into ``out``, as the run goes (nothing is lost on Ctrl-C or a bus error):
+against it interactively and an outside ISOBUS stack can be tested without a qualification.
+
+It writes as every command that writes into ``--out`` does (:class:`hil.record.staging.Staging`):
+into a staging directory inside ``out`` while it runs, moved into ``out`` when it ends, however
+it ends (the end of ``--duration``, Ctrl-C, a bus error, a disk that refuses a write). So a
+serve that cannot start leaves ``out`` as it found it, and while one runs ``out/summary.json``
+says it has not finished (the previous summary kept as ``summary.previous.json``) and the
+previous run's files stay in ``out`` until the new ones replace them. The staging files are
+live, flushed every :data:`SLICE_S`: ``tail -f`` them at the path printed when the serve starts.
 
 - ``bus.log``: every frame sent and received, candump format (python-can's writer; can-utils,
   cantools and SavvyCAN read it);
@@ -11,11 +18,13 @@ writes, into ``out``, as the run goes (nothing is lost on Ctrl-C or a bus error)
   and process data acknowledgement the TC received, in run time;
 
 and at the end ``as-applied.geojson`` (the as-applied map of the implement, when one connected)
-and ``summary.json``.
+and ``summary.json``. A disk that refuses a write ends the serve: what was recorded until then
+is moved into ``out`` all the same, and the error names the file.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import time
@@ -33,12 +42,18 @@ from hil.isobus import ddi as dd
 from hil.isobus.tc.records import Event, LoggedValue, ReceivedAcknowledge
 from hil.isobus.tractor import Tractor
 from hil.isobus.wire import drive
+from hil.record.atomic import named_os_error, write_json_atomic
+from hil.record.staging import Staging, is_storage_error
 from hil.rig.device import Device
 
 __all__ = ["LoggedDevice", "ServeResult", "serve"]
 
 #: how long each slice of the real-time loop runs before the logs are flushed
 SLICE_S = 0.2
+#: what a serve writes besides ``summary.json``, moved into ``out`` at its end
+OUTPUTS = ("bus.log", "tc.jsonl", "as-applied.geojson")
+#: the outputs written a line at a time, cut back to a whole line when the disk refuses one
+LINE_FILES = ("bus.log", "tc.jsonl")
 
 
 class LoggedDevice(Device):
@@ -170,36 +185,121 @@ def serve(tractor: Tractor, bus_spec: str, out: Path, *, duration_s: float = mat
         The bus cannot be opened or fails, or ``out`` cannot be written (what was recorded
         until then is on disk).
     """
-    out.mkdir(parents=True, exist_ok=True)
     bus = open_bus(bus_spec)
+    try:
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise named_os_error(exc, out) from exc
+        staging = Staging(out, prefix=".serve-", outputs=OUTPUTS, record="summary.json")
+        staging.begin({"status": "running",
+                       "why": "hil isobus serve has not finished (or was killed); its live "
+                              f"files are in {staging.path}"})
+    except BaseException:
+        bus.shutdown()
+        raise
+    if console is not None:
+        console(f"live files (tail -f them): {staging.path}/tc.jsonl, bus.log; moved into "
+                f"{out}/ at the end")
+    refused = _Refused(staging.path)
     interrupted = False
     now = 0.0
+    logged: LoggedDevice | None = None
     try:
-        writer = can.Logger(str(out / "bus.log"))
-        with _opened(out / "tc.jsonl") as tc_file:
+        with refused.noting("bus.log"):
+            writer = can.Logger(str(staging.path / "bus.log"))
+        if refused.error is None:
             logged = LoggedDevice(tractor.network, writer, epoch_s=time.time())
-            tc_log = _TcLog(tractor, tc_file, console)
             try:
-                while now < duration_s:
-                    now = drive(logged, bus, min(SLICE_S, duration_s - now), clock=clock,
-                                start_s=now)
-                    tc_log.flush()
-            except KeyboardInterrupt:
-                interrupted = True
-            except can.CanError as exc:
-                raise BusError(f"{bus_spec}: {exc}") from exc
+                with refused.noting("tc.jsonl"), _opened(staging.path / "tc.jsonl") as tc_file:
+                    tc_log = _TcLog(tractor, tc_file, console)
+                    try:
+                        while now < duration_s and refused.error is None:
+                            with refused.noting("bus.log"):
+                                now = drive(logged, bus, min(SLICE_S, duration_s - now),
+                                            clock=clock, start_s=now)
+                            with refused.noting("tc.jsonl"):
+                                tc_log.flush()
+                    except KeyboardInterrupt:
+                        interrupted = True
+                    except can.CanError as exc:
+                        raise BusError(f"{bus_spec}: {exc}") from exc
+                    finally:
+                        with refused.noting("tc.jsonl"):
+                            tc_log.flush()
             finally:
-                tc_log.flush()
-                writer.stop()
-    finally:
+                with refused.noting("bus.log"):
+                    writer.stop()
+    except BaseException:
+        # a bus error, or a second Ctrl-C: what was recorded moves into out all the same
         bus.shutdown()
-    record = tractor.as_applied()
-    if record is not None and len(record):
-        record.save_geojson(out / "as-applied.geojson")
-    result = ServeResult(run_time_s=now, frames=logged.frames, events=len(tractor.tc.events),
-                         values=len(tractor.tc.values),
+        _promote(staging)
+        raise
+    bus.shutdown()
+    result = ServeResult(run_time_s=now, frames=logged.frames if logged else 0,
+                         events=len(tractor.tc.events), values=len(tractor.tc.values),
                          activated=any(e.kind.value == "activated" for e in tractor.tc.events),
                          interrupted=interrupted)
-    (out / "summary.json").write_text(json.dumps(result.__dict__, indent=2) + "\n",
-                                      encoding="utf-8")
+    if refused.error is None:
+        with refused.noting("as-applied.geojson"):
+            record = tractor.as_applied()
+            if record is not None and len(record):
+                record.save_geojson(staging.path / "as-applied.geojson")
+    summary: dict[str, Any] = dict(result.__dict__)
+    if refused.error is not None:
+        summary["error"] = str(refused.in_out(out))
+    # a small file: it may still fit where the log did not; if not, out's placeholder stays
+    with refused.noting("summary.json"):
+        write_json_atomic(staging.path / "summary.json", summary)
+    # however the serve ended, what it recorded moves into out (renames: no space needed)
+    _promote(staging)
+    if refused.error is not None:
+        raise refused.in_out(out)
     return result
+
+
+def _trim_to_last_line(path: Path) -> None:
+    """Cut a line file the disk refused back to its last whole line, so that candump readers
+    and JSON-lines readers take it (shrinking a file needs no space)."""
+    with contextlib.suppress(OSError), path.open("rb+") as handle:
+        data = handle.read()
+        handle.truncate(data.rfind(b"\n") + 1)
+
+
+def _promote(staging: Staging) -> None:
+    """Move a serve's files into ``out``: they replace the previous serve's as a set (an
+    as-applied map of an earlier run must not sit beside this run's log)."""
+    for name in OUTPUTS:
+        if not (staging.path / name).exists():
+            with contextlib.suppress(FileNotFoundError):
+                (staging.out / name).unlink()
+    staging.promote()
+
+
+class _Refused:
+    """The first write the disk refused during a serve, noted instead of raised: the serve
+    stops, and what it recorded until then is kept."""
+
+    def __init__(self, staging: Path) -> None:
+        self.staging = staging
+        self.error: OSError | None = None
+        self.name = ""
+
+    @contextmanager
+    def noting(self, name: str) -> Iterator[None]:
+        """Note a storage error raised inside while writing ``name`` (other errors go on)."""
+        try:
+            yield
+        except OSError as exc:
+            if not is_storage_error(exc):
+                raise
+            if self.error is None:
+                self.error, self.name = exc, name
+            if name in LINE_FILES:
+                _trim_to_last_line(self.staging / name)
+
+    def in_out(self, out: Path) -> OSError:
+        """The noted error naming the file in ``out`` it was written to (moved there)."""
+        assert self.error is not None
+        return OSError(self.error.errno, self.error.strerror or str(self.error),
+                       str(out / self.name))
