@@ -19,8 +19,10 @@ and the previous run's files left as they were; a half-written run never lands i
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime as dt
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -156,7 +158,7 @@ def _run(args: argparse.Namespace) -> int:
           f"{args.clock}) against {args.dut} on {args.bus}", file=sys.stderr)
     try:
         phase("run:staged")
-        with staging.writing():     # a disk refusing a write names it, leaves no staging
+        with _named_in_out(staging), staging.writing():   # a refused write: no staging left
             result = run_scenario(rig_cls, scenario, dut,
                                   RunOptions(out_dir=staging.path, clock=args.clock,
                                              bus=args.bus, seed=args.seed, csv=args.csv,
@@ -172,6 +174,19 @@ def _run(args: argparse.Namespace) -> int:
         if staging.path.exists():
             _finish(staging, rig_cls, scenario, args)
     return _summary(result, out)
+
+
+@contextlib.contextmanager
+def _named_in_out(staging: Staging) -> Iterator[None]:
+    """An error that names a file of the staging directory names it where it will be: the
+    run's files move into ``--out`` however the run ends (a physical ECU's endpoints file, a
+    DUT's log)."""
+    try:
+        yield
+    except HilError as exc:
+        if str(staging.path) not in str(exc):
+            raise
+        raise HilError(str(exc).replace(str(staging.path), str(staging.out))) from exc
 
 
 def _make_dut(args: argparse.Namespace, profile: DutProfile | None, rig_cls: type[Rig],

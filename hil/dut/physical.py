@@ -169,7 +169,9 @@ class PhysicalDut(DutRunner):
         found: dict[str, Any] = {"name": self.name, "kind": "physical",
                                  "nmt_state_at_start": self.seen_state}
         if self.endpoints_path is not None:
-            found["endpoints"] = str(self.endpoints_path)
+            # the file's name in the run's directory: the directory moves into --out when
+            # the command ends (a staging path would name nothing by then)
+            found["endpoints"] = self.endpoints_path.name
         return found
 
     def identity(self) -> dict[str, Any]:

@@ -43,6 +43,9 @@ def test_no_heartbeat_is_a_setup_error_after_the_endpoints_are_out(rig: str,
     assert len(errors) == 1, done.stderr
     heartbeat = "0x710" if rig == "fertilizer" else "0x701"
     assert f"no heartbeat {heartbeat}" in errors[0] and spec in errors[0]
+    # it names the endpoints file where it is once the command has ended (the run's files
+    # are staged while it runs, then moved into --out), never the staging directory
+    assert f"endpoints: {tmp_path / 'run' / 'ecu-endpoints.json'}" in errors[0], errors[0]
     # the endpoints came first, on stderr and in the run directory
     lines = done.stderr.splitlines()
     join = next(i for i, line in enumerate(lines) if f"join bus {spec}" in line)
