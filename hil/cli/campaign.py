@@ -339,8 +339,9 @@ def _rerun(campaign: Any, client: Any, out: Path) -> None:
             "command": task.qualify_command(), "verdict": sample["verdict"],
             "error": sample.get("error"),
             # the rerun's bus conformance needs its bus log, which the measurements-only
-            # sample did not keep: every other measurement must be the sample's, bit for bit
-            "reproduced": same_measurements(
+            # sample did not keep: every other measurement must be the sample's, bit for bit;
+            # a rerun that could not run (its disk full, its DUT gone) says nothing either way
+            "reproduced": None if sample["verdict"] == "error" else same_measurements(
                 [m for m in sample["measurements"] if not is_conformance(m["name"])],
                 original.get("measurements", []))})
     map_samples(client, list(tasks.values()), on_rerun,
@@ -371,7 +372,9 @@ def _write_report(out: Path) -> None:
 def _report(doc: dict[str, Any], out: Path) -> int:
     s = doc["summary"]
     for rerun in doc["reruns"]:
-        flag = "" if rerun["reproduced"] else "  (NOT reproduced: see its report)"
+        flag = ("" if rerun["reproduced"] else "  (NOT reproduced: see its report)"
+                if rerun["reproduced"] is not None
+                else f"  (the rerun failed: {rerun.get('error') or 'no reason given'})")
         print(f"hil: sample {rerun['index']} ({'; '.join(rerun['why']) or 'rerun'}): "
               f"{rerun['command']}{flag}", file=sys.stderr)
     rate = s["pass_rate"]

@@ -120,7 +120,7 @@ def _reruns(doc: dict[str, Any]) -> str:
     rows = "".join(
         f"<tr><td>{_sample_link(doc, r['index'])}</td><td>{r['seed']}</td>"
         f"<td>{esc('; '.join(r['why']))}</td><td>{esc(r['verdict'])}</td>"
-        f"<td>{'yes' if r['reproduced'] else '<b>NO</b>'}</td>"
+        f"<td>{_reproduced(r)}</td>"
         f"<td><code>{esc(r['command'])}</code></td></tr>" for r in doc["reruns"])
     return ('<section id="reruns"><h2>Failing and worst samples, rerun with full recording'
             '</h2><table><tr><th>sample</th><th>seed</th><th>why</th><th>verdict</th>'
@@ -168,3 +168,10 @@ def write_campaign_html(out: Path) -> Path:
     tmp.write_text(render(doc), encoding="utf-8")
     tmp.replace(path)
     return path
+
+
+def _reproduced(rerun: dict[str, Any]) -> str:
+    """A rerun's reproduction as a cell: yes, NO, or why the rerun could not say."""
+    if rerun["reproduced"] is None:
+        return f"<b>rerun failed</b>: {esc(str(rerun.get('error') or '?'))}"
+    return "yes" if rerun["reproduced"] else "<b>NO</b>"
