@@ -21,7 +21,7 @@ if(BUILD_TESTING)
   add_test(NAME rc400_adapter COMMAND test_rc400_adapter)
 
   # the Python build's frames (tests/make_vectors.py from dbc_adapter.py), byte for byte
-  add_executable(replay_rc400 ${BYO_DIR}/tests/replay_rc400.c)
+  add_executable(replay_rc400 ${BYO_DIR}/tests/replay_rc400.c ${BYO_DIR}/tests/replay.c)
   target_link_libraries(replay_rc400 PRIVATE agrihil_byo_rc400)
   set(RC400_VECTORS ${BYO_DIR}/tests/data/rc400-physical.txt
       ${BYO_DIR}/tests/data/rc400-paper-literal.txt ${BYO_DIR}/tests/data/rc400-open-loop.txt)
@@ -64,4 +64,64 @@ if(BUILD_TESTING)
            ${RC400_FW} --bus socketcand:127.0.0.1:9 --param mode=physical --param ff_coeff=4.39)
   add_test(NAME rc400_cli_help COMMAND sh ${RC400_CLI} 0 "agrihil-fertilizer-rc400-fw"
            ${RC400_FW} --help)
+endif()
+
+# The depth controller built against a foreign database (issue 28): the DepthPro DP-200's
+# layout (docs/examples/byo-depth/depthpro_dp200.dbc), its bus layer generated from that
+# database by cantools (generate.sh -> generated/); the control core (fuzzy PID, roller hold)
+# is the reference firmware's, unchanged. At boot it remaps the drive's PDOs by SDO.
+add_library(agrihil_byo_dp200 STATIC ${BYO_DIR}/depth_dp200_adapter.c
+            ${BYO_DIR}/generated/depthpro_dp200.c)
+target_include_directories(agrihil_byo_dp200 PUBLIC ${BYO_DIR} ${BYO_DIR}/generated
+                           ${CMAKE_CURRENT_SOURCE_DIR}/hal)
+target_link_libraries(agrihil_byo_dp200 PUBLIC agrihil_core)
+
+add_executable(agrihil-depth-dp200-fw ${BYO_DIR}/depth_dp200_main.c)
+target_link_libraries(agrihil-depth-dp200-fw PRIVATE agrihil_byo_dp200 agrihil_app)
+
+if(BUILD_TESTING)
+  add_executable(test_dp200_adapter ${BYO_DIR}/tests/test_dp200_adapter.c)
+  target_include_directories(test_dp200_adapter PRIVATE ${CMAKE_CURRENT_SOURCE_DIR}/tests)
+  target_link_libraries(test_dp200_adapter PRIVATE agrihil_byo_dp200)
+  add_test(NAME dp200_adapter COMMAND test_dp200_adapter)
+
+  # the Python build's frames (tests/make_vectors_dp200.py from dbc_adapter.py), byte for byte
+  add_executable(replay_dp200 ${BYO_DIR}/tests/replay_dp200.c ${BYO_DIR}/tests/replay.c)
+  target_link_libraries(replay_dp200 PRIVATE agrihil_byo_dp200)
+  set(DP200_VECTORS ${BYO_DIR}/tests/data-dp200/dp200-profile.txt
+      ${BYO_DIR}/tests/data-dp200/dp200-defaults.txt ${BYO_DIR}/tests/data-dp200/dp200-refused.txt)
+  add_test(NAME dp200_vectors COMMAND replay_dp200 ${DP200_VECTORS})
+  # the replay must see a difference: the profile vectors with the first nonzero target
+  # velocity's first byte changed
+  file(READ ${BYO_DIR}/tests/data-dp200/dp200-profile.txt dp200_text)
+  string(REGEX MATCH "\nout 302 s [1-9a-f][0-9a-f]*\n" dp200_first_command "${dp200_text}")
+  string(SUBSTRING "${dp200_first_command}" 11 2 dp200_byte)
+  string(REPLACE "out 302 s ${dp200_byte}" "out 302 s 00" dp200_wrong_command
+         "${dp200_first_command}")
+  string(FIND "${dp200_text}" "${dp200_first_command}" dp200_at)
+  string(SUBSTRING "${dp200_text}" 0 ${dp200_at} dp200_head)
+  string(LENGTH "${dp200_first_command}" dp200_len)
+  math(EXPR dp200_tail_at "${dp200_at} + ${dp200_len}")
+  string(SUBSTRING "${dp200_text}" ${dp200_tail_at} -1 dp200_tail)
+  file(WRITE ${CMAKE_CURRENT_BINARY_DIR}/dp200-wrong.txt
+       "${dp200_head}${dp200_wrong_command}${dp200_tail}")
+  add_test(NAME dp200_vectors_detect_mismatch
+           COMMAND sh ${CMAKE_CURRENT_SOURCE_DIR}/tests/expect_exit.sh 1
+                   "the Python build 302 s 00" $<TARGET_FILE:replay_dp200>
+                   ${CMAKE_CURRENT_BINARY_DIR}/dp200-wrong.txt)
+  add_test(NAME dp200_vectors_detect_missing_file
+           COMMAND sh ${CMAKE_CURRENT_SOURCE_DIR}/tests/expect_exit.sh 1
+                   "no-such.txt: missing" $<TARGET_FILE:replay_dp200> no-such.txt)
+
+  # the command line is agrihil-depth-fw's
+  set(DP200_FW $<TARGET_FILE:agrihil-depth-dp200-fw>)
+  set(DP200_CLI ${CMAKE_CURRENT_SOURCE_DIR}/tests/expect_exit.sh)
+  add_test(NAME dp200_cli_unknown_param COMMAND sh ${DP200_CLI} 2 "unknown parameter 'kp9'"
+           ${DP200_FW} --bus socketcand:127.0.0.1:9 --param kp9=1)
+  add_test(NAME dp200_cli_bad_timeout COMMAND sh ${DP200_CLI} 2 "sdo_timeout_s must be > 0"
+           ${DP200_FW} --bus socketcand:127.0.0.1:9 --param sdo_timeout_s=0)
+  add_test(NAME dp200_cli_connection_refused COMMAND sh ${DP200_CLI} 1 "127.0.0.1:9"
+           ${DP200_FW} --bus socketcand:127.0.0.1:9 --param kp0=3)
+  add_test(NAME dp200_cli_help COMMAND sh ${DP200_CLI} 0 "agrihil-depth-dp200-fw"
+           ${DP200_FW} --help)
 endif()

@@ -1,79 +1,33 @@
-/* Replay the RC-400 frame vectors of the Python build (make_vectors.py) through the C adapter:
- * every frame it sends must equal the Python build's, byte for byte, in the same order.
+/* Replay the RC-400 frame vectors of the Python build (make_vectors.py) through the C adapter
+ * (replay.h): every frame it sends must equal the Python build's, byte for byte, in order.
  *
  *   replay_rc400 FILE...     exit 0 when all equal; 1 naming the first difference of each file
  *                            (file:line, what was expected and what came), or a missing or
  *                            unreadable file; 2 on bad usage */
 #include <stdio.h>
-#include <stdlib.h>
 #include <string.h>
 
 #include "fertilizer_rc400_adapter.h"
+#include "replay.h"
 
-#define MAX_PENDING 8
+_Static_assert(RC400_MAX_OUT <= REPLAY_MAX_OUT && RC400_BOOT_FRAMES <= REPLAY_MAX_OUT,
+               "the replay holds every frame of a step");
 
-typedef struct {
-    hal_can_frame_t frames[MAX_PENDING];
-    size_t n;    /* what the adapter sent in answer to the last event */
-    size_t next; /* how many of them the file's out lines matched so far */
-    long line;   /* the event's line */
-} pending_t;
+static rc400_adapter_t adapter;
+static rc400_config_t cfg;
 
-static int parse_frame(const char *text, hal_can_frame_t *f)
+static void reset(void)
 {
-    unsigned long id;
-    char kind;
-    char hex[40];
-    if (sscanf(text, "%lx %c %39s", &id, &kind, hex) != 3 || (kind != 's' && kind != 'x')) {
-        if (sscanf(text, "%lx %c", &id, &kind) != 2 || (kind != 's' && kind != 'x')) {
-            return -1;
-        }
-        hex[0] = '\0'; /* no data */
-    }
-    size_t len = strlen(hex);
-    if (len % 2 != 0 || len > 16) {
-        return -1;
-    }
-    memset(f, 0, sizeof *f);
-    f->id = (uint32_t)id;
-    f->extended = kind == 'x';
-    f->len = (uint8_t)(len / 2);
-    for (size_t i = 0; i < f->len; i++) {
-        unsigned byte;
-        if (sscanf(hex + 2 * i, "%2x", &byte) != 1) {
-            return -1;
-        }
-        f->data[i] = (uint8_t)byte;
-    }
-    return 0;
+    rc400_config_defaults(&cfg, PPID_LAW_PHYSICAL);
+    rc400_init(&adapter, &cfg);
 }
 
-static void format_frame(const hal_can_frame_t *f, char *buf, size_t size)
-{
-    int used = snprintf(buf, size, "%x %c ", (unsigned)f->id, f->extended ? 'x' : 's');
-    for (size_t i = 0; i < f->len && used > 0 && (size_t)used + 3 < size; i++) {
-        used += snprintf(buf + used, size - (size_t)used, "%02x", f->data[i]);
-    }
-}
-
-/* The answers of the last event not matched by an out line: a difference. */
-static int check_done(const char *path, const pending_t *p)
-{
-    if (p->next == p->n) {
-        return 0;
-    }
-    char got[64];
-    format_frame(&p->frames[p->next], got, sizeof got);
-    fprintf(stderr, "%s:%ld: the C build sent %zu frame(s), the Python build %zu; first extra: %s\n",
-            path, p->line, p->n, p->next, got);
-    return 1;
-}
-
-static int set_params(const char *path, long line, char *text, rc400_config_t *cfg)
+static int set_params(const char *path, long line, char *text)
 {
     /* the law first: it decides the defaults and which names exist */
     ppid_law_t law = PPID_LAW_PHYSICAL;
     const char *mode = strstr(text, "mode=");
+    int failed = 0;
     if (mode != NULL) {
         char name[32];
         if (sscanf(mode + 5, "%31s", name) != 1 || !ppid_law_parse(name, &law)) {
@@ -81,106 +35,42 @@ static int set_params(const char *path, long line, char *text, rc400_config_t *c
             return 1;
         }
     }
-    rc400_config_defaults(cfg, law);
+    rc400_config_defaults(&cfg, law);
     param_ref_t refs[RC400_PARAM_COUNT];
-    size_t n = rc400_param_refs(cfg, refs);
-    for (char *tok = strtok(text, " \n"); tok != NULL; tok = strtok(NULL, " \n")) {
+    size_t n = rc400_param_refs(&cfg, refs);
+    for (char *tok = strtok(text, " \n"); tok != NULL && !failed; tok = strtok(NULL, " \n")) {
         char *value = param_split(tok);
         if (value == NULL) {
             fprintf(stderr, "%s:%ld: '%s' is not KEY=VALUE\n", path, line, tok);
-            return 1;
-        }
-        if (strcmp(tok, "mode") != 0 && param_set(refs, n, tok, value) != PARAM_OK) {
+            failed = 1;
+        } else if (strcmp(tok, "mode") != 0 && param_set(refs, n, tok, value) != PARAM_OK) {
             fprintf(stderr, "%s:%ld: bad parameter '%s=%s'\n", path, line, tok, value);
-            return 1;
+            failed = 1;
         }
     }
-    return 0;
+    rc400_init(&adapter, &cfg);
+    return failed;
 }
 
-static int replay(const char *path)
+static size_t boot(hal_can_frame_t out[REPLAY_MAX_OUT])
 {
-    FILE *in = fopen(path, "r");
-    if (in == NULL) {
-        fprintf(stderr, "%s: missing or unreadable\n", path);
-        return 1;
-    }
-    static rc400_adapter_t a;
-    rc400_config_t cfg;
-    rc400_config_defaults(&cfg, PPID_LAW_PHYSICAL);
-    rc400_init(&a, &cfg);
-    pending_t p = {.n = 0, .next = 0, .line = 0};
-    char text[256];
-    long line = 0, steps = 0, frames = 0;
-    int failed = 0;
-    while (!failed && fgets(text, sizeof text, in) != NULL) {
-        line++;
-        hal_can_frame_t f;
-        if (text[0] == '#' || text[0] == '\n') {
-            continue;
-        } else if (strncmp(text, "params ", 7) == 0) {
-            failed = set_params(path, line, text + 7, &cfg);
-            rc400_init(&a, &cfg);
-        } else if (strncmp(text, "out ", 4) == 0) {
-            if (parse_frame(text + 4, &f) != 0) {
-                fprintf(stderr, "%s:%ld: not a frame: %s", path, line, text);
-                failed = 1;
-            } else if (p.next >= p.n) {
-                fprintf(stderr, "%s:%ld: the Python build sent %s", path, line, text + 4);
-                fprintf(stderr, "%s:%ld: the C build sent only %zu frame(s) here\n", path,
-                        p.line, p.n);
-                failed = 1;
-            } else {
-                const hal_can_frame_t *g = &p.frames[p.next++];
-                if (g->id != f.id || g->extended != f.extended || g->len != f.len ||
-                    memcmp(g->data, f.data, f.len) != 0) {
-                    char got[64];
-                    format_frame(g, got, sizeof got);
-                    fprintf(stderr, "%s:%ld: the C build sent %s, the Python build %s", path,
-                            line, got, text + 4);
-                    failed = 1;
-                }
-                frames++;
-            }
-        } else {
-            failed = check_done(path, &p);
-            p = (pending_t){.n = 0, .next = 0, .line = line};
-            if (failed) {
-                break;
-            } else if (strcmp(text, "boot\n") == 0) {
-                p.n = rc400_boot_frames(p.frames);
-            } else if (strcmp(text, "step\n") == 0) {
-                p.n = rc400_step(&a, p.frames);
-                steps++;
-            } else if (strncmp(text, "in ", 3) == 0 && parse_frame(text + 3, &f) == 0) {
-                rc400_on_frame(&a, &f);
-            } else {
-                fprintf(stderr, "%s:%ld: not an event: %s", path, line, text);
-                failed = 1;
-            }
-        }
-    }
-    failed = failed || check_done(path, &p);
-    fclose(in);
-    if (!failed && steps == 0) {
-        fprintf(stderr, "%s: no step in the file\n", path);
-        failed = 1;
-    }
-    if (!failed) {
-        printf("%s: %ld steps, %ld frames equal\n", path, steps, frames);
-    }
-    return failed;
+    return rc400_boot_frames(out);
+}
+
+static size_t step(hal_can_frame_t out[REPLAY_MAX_OUT])
+{
+    return rc400_step(&adapter, out);
+}
+
+static size_t on_frame(const hal_can_frame_t *frame, hal_can_frame_t out[REPLAY_MAX_OUT])
+{
+    (void)out;
+    rc400_on_frame(&adapter, frame);
+    return 0;
 }
 
 int main(int argc, char **argv)
 {
-    if (argc < 2) {
-        fprintf(stderr, "usage: replay_rc400 FILE...\n");
-        return 2;
-    }
-    int failed = 0;
-    for (int i = 1; i < argc; i++) {
-        failed |= replay(argv[i]);
-    }
-    return failed;
+    static const replay_ops_t ops = {"replay_rc400", reset, set_params, boot, step, on_frame};
+    return replay_main(argc, argv, &ops);
 }
