@@ -32,4 +32,9 @@ setup(ext_modules=[
               depends=["plant_emulators/fertilizer/native/ground_speed_core.h",
                        *SHARED_HEADERS],
               extra_compile_args=EXACT_FLOATS),
+    Extension("plant_emulators.sowing_depth._drive_cycle_native",
+              sources=["plant_emulators/sowing_depth/native/drive_cycle_core.c",
+                       "plant_emulators/sowing_depth/native/drive_cycle_module.c"],
+              depends=["plant_emulators/sowing_depth/native/drive_cycle_core.h"],
+              extra_compile_args=EXACT_FLOATS),
 ])

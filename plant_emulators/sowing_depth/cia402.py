@@ -52,6 +52,7 @@ Example
 from __future__ import annotations
 
 import math
+from types import ModuleType
 
 from plant_emulators.sowing_depth.cia402_objects import (
     DATA_TYPE_RANGES,
@@ -514,6 +515,45 @@ class Cia402Drive:
                     self._enter(DriveState.SWITCH_ON_DISABLED)              # 1
         self._monitor_overload(dt)
 
+    def pv_steady(self) -> bool:
+        """Whether :meth:`step` is now the steady profile-velocity loop :meth:`run_pv_native`
+        runs in C: operation enabled, mode 3, the rod not jammed."""
+        return (self._state is DriveState.OPERATION_ENABLED
+                and self._mode == MODE_PROFILE_VELOCITY and not self.cylinder.jammed)
+
+    def run_pv_native(self, native: ModuleType, n: int, dt: float, dx: float, t: float,
+                      x: float, next_cell: float) -> tuple[int, float, float]:
+        """Up to ``n`` calls of :meth:`step` by the C twin (only while :meth:`pv_steady`).
+
+        The twin (``native/drive_cycle_core.c``, module ``native``) runs :meth:`_pv_cycle`,
+        the cylinder's step, :meth:`_monitor_velocity` and :meth:`_monitor_overload` per step,
+        and the caller's sums ``t += dt``, ``x += dx``; it stops after the step in which ``x``
+        reaches ``next_cell`` (the plant computes the cell, which changes the soil under the
+        roller) or the overload monitor faults (raised here, as :meth:`_monitor_overload`
+        raises it). Returns (steps run, t, x).
+        """
+        cyl = self.cylinder
+        prof = self._profile
+        target = self._clamp_v(0.0 if self._controlword & CW_HALT
+                               else _mm(self._od[(0x60FF, 0)]))
+        (done, why, t, x, prof.velocity, prof.position, self._window_time_s,
+         self._threshold_time_s, self._overload_s, self._internal_limit, self._target_reached,
+         self._speed_zero, cyl.position_mm, cyl.velocity_mm_s, cyl.torque_n_m, cyl.current_a,
+         cyl.force_n, cyl.at_force_limit) = native.run(
+            n, dt, dx, t, x, next_cell,
+            target, self._lim_min, self._lim_max, self._accel, self._decel, self._vmax,
+            self._vel_window, self._vel_window_s, self._vel_threshold, self._vel_threshold_s,
+            self._overload_limit_s, prof.velocity, prof.position, self._window_time_s,
+            self._threshold_time_s, self._overload_s,
+            cyl.position_mm, cyl.velocity_mm_s, cyl.load_contact_mm,
+            cyl.load_stiffness_n_per_mm, cyl.load_damping_n_s_per_mm, cyl.load_preload_n,
+            cyl.m_eff_kg, cyl.k_force_n_per_n_m, cyl.velocity_gain(dt), cyl.torque_limit_n_m,
+            cyl.kt_n_m_per_a, cyl.dc_bus_voltage_v, cyl.ke_v_s_per_rad, cyl.rad_per_mm,
+            cyl.ra_ohm, cyl.rod_speed_max_mm_per_s, cyl.stroke_mm)
+        if why & native.OVERLOAD:
+            self._raise_fault(ErrorCode.CONTINUOUS_OVER_CURRENT)
+        return done, t, x
+
     def _clamp_v(self, v: float) -> float:
         vmax = self._vmax
         if v > vmax:
@@ -561,6 +601,8 @@ class Cia402Drive:
         self._window_time_s = 0.0
 
     def _pv_cycle(self, dt: float) -> float:
+        # (run_pv_native's C twin has this cycle and the two monitors expression for
+        # expression: change both)
         cyl = self.cylinder
         target = 0.0 if self._controlword & CW_HALT else _mm(self._od[(0x60FF, 0)])
         target = self._clamp_v(target)

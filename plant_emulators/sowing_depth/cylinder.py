@@ -132,11 +132,20 @@ class ServoCylinder:
         self.at_force_limit = False
         self.force_n = self._load(self.position_mm, 0.0)
 
-    def step(self, dt: float, v_cmd_mm_s: float) -> None:
-        """Advance ``dt`` seconds with the power stage on, tracking ``v_cmd_mm_s``."""
+    def velocity_gain(self, dt: float) -> float:
+        """``(1 - exp(-dt/τ_v)) / dt`` of the velocity loop, computed once per step size."""
         if dt != self._dt_cached:
             self._dt_cached = dt
             self._k_vel = -math.expm1(-dt / self.tau_v_s) / dt
+        return self._k_vel
+
+    def step(self, dt: float, v_cmd_mm_s: float) -> None:
+        """Advance ``dt`` seconds with the power stage on, tracking ``v_cmd_mm_s``.
+
+        (The C twin of the drive's profile-velocity loop, ``native/drive_cycle_core.c``, has
+        this step expression for expression: change both.)
+        """
+        k_vel = self.velocity_gain(dt)
         v = self.velocity_mm_s
         x = self.position_mm
         pen = x - self.load_contact_mm
@@ -148,7 +157,7 @@ class ServoCylinder:
         m_eff = self.m_eff_kg
         k_f = self.k_force_n_per_n_m
         # m_eff [kg] · a [mm/s²] · 1e-3 = N
-        torque = (m_eff * (v_cmd_mm_s - v) * self._k_vel * 1e-3 + f_load) / k_f
+        torque = (m_eff * (v_cmd_mm_s - v) * k_vel * 1e-3 + f_load) / k_f
         limit = self.torque_limit_n_m
         if torque * v > 0.0:
             volt_limit = self.kt_n_m_per_a * (

@@ -47,6 +47,12 @@ Cylinder load. The soil under the pre-sowing roller is a one-sided spring and da
 
 Determinism: all randomness is pre-drawn in cell order from the generator passed in, and
 ``advance(n, dt)`` runs exactly the operations of n calls of ``advance(1, dt)``.
+
+Engines (see :mod:`plant_emulators.engine`): the drive's steady profile-velocity loop (the
+drive's cycle, the cylinder and the drive's monitors, ten steps per control period, ~60 % of
+the plant's time in a depth run) also exists as a C twin, ``native/drive_cycle_core.c``, that
+gives the same floats; the ``engine`` argument picks it (``native``) or the Python models
+alone (``python``). Everything else (truth cells, the other drive states) is Python in both.
 """
 
 from __future__ import annotations
@@ -56,6 +62,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from plant_emulators.engine import Engine, load_native, resolve_engine
 from plant_emulators.sowing_depth.arm import PressArm
 from plant_emulators.sowing_depth.cia402 import Cia402Drive
 from plant_emulators.sowing_depth.config import SowingDepthRigConfig
@@ -103,6 +110,9 @@ class SowingDepthPlant:
         The rig configuration (:func:`~plant_emulators.sowing_depth.config.load_rig_config`).
     rng : numpy.random.Generator
         The plant's only source of randomness (give sensors their own generators).
+    engine : {"native", "python"}, optional
+        Which implementation runs the drive's steady loop (default: ``AGRIHIL_PHYSICS``, see
+        :mod:`plant_emulators.engine`); both give the same floats.
 
     Attributes
     ----------
@@ -124,7 +134,11 @@ class SowingDepthPlant:
     (1.2, 12)
     """
 
-    def __init__(self, config: SowingDepthRigConfig, rng: np.random.Generator) -> None:
+    def __init__(self, config: SowingDepthRigConfig, rng: np.random.Generator,
+                 engine: str | None = None) -> None:
+        self.engine: Engine = resolve_engine(engine)
+        self._native = (load_native("plant_emulators.sowing_depth._drive_cycle_native")
+                        if self.engine == "native" else None)
         self.config = config
         m, th, out = config.machine, config.throw, config.outliers
         self.cylinder = ServoCylinder(config.motor, config.cylinder)
@@ -215,15 +229,24 @@ class SowingDepthPlant:
             raise ValueError(f"n must be >= 0, got {n}")
         if not dt > 0.0:
             raise ValueError(f"dt must be > 0, got {dt!r}")
-        drive_step = self.drive.step
+        drive = self.drive
+        drive_step = drive.step
+        native = self._native
         dx = self._speed * dt
         t = self.time_s
         x = self.distance_m
         nxt = self._next_cell_m
-        for _ in range(n):
-            drive_step(dt)
-            t += dt
-            x += dx
+        left = n
+        while left:
+            if native is not None and drive.pv_steady():
+                # the C twin runs the steps up to the next cell (or an overload fault)
+                done, t, x = drive.run_pv_native(native, left, dt, dx, t, x, nxt)
+                left -= done
+            else:
+                drive_step(dt)
+                t += dt
+                x += dx
+                left -= 1
             if x >= nxt:
                 while x >= nxt:
                     self._cell(record=True)

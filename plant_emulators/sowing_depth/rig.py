@@ -253,6 +253,9 @@ class SowingDepthRig(Rig):
                 "outlier_fraction_pct": float(100.0 * (cells["outlier_kind"] > 0).mean()),
                 **gnss}
 
+    def physics_engines(self) -> dict[str, str]:
+        return {"plant": self.plant.engine}
+
     def dut_environment(self) -> dict[str, str]:
         return {"AGRIHIL_GNSS_PORT": self.gnss.path}
 
