@@ -4,6 +4,32 @@
 # the reference firmware's, unchanged. Included from ../CMakeLists.txt after include(CTest).
 set(BYO_DIR ${CMAKE_CURRENT_LIST_DIR})
 
+# The tests of a replay program (tests/replay.h): <prefix>_vectors replays the files; the replay
+# must see a difference (<prefix>_vectors_detect_mismatch: the first file with the first
+# "out <id> s" line whose data matches <data_regex> given the first byte <byte>) and a missing
+# file (<prefix>_vectors_detect_missing_file).
+function(byo_replay_tests prefix replay id data_regex byte)
+  set(expect ${CMAKE_CURRENT_SOURCE_DIR}/tests/expect_exit.sh)
+  add_test(NAME ${prefix}_vectors COMMAND ${replay} ${ARGN})
+  list(GET ARGN 0 first_file)
+  file(READ ${first_file} text)
+  string(REGEX MATCH "\nout ${id} s ${data_regex}\n" line "${text}")
+  string(LENGTH "\nout ${id} s " skip)
+  string(SUBSTRING "${line}" ${skip} 2 old)
+  string(REPLACE "out ${id} s ${old}" "out ${id} s ${byte}" wrong "${line}")
+  string(FIND "${text}" "${line}" at)
+  string(SUBSTRING "${text}" 0 ${at} head)
+  string(LENGTH "${line}" len)
+  math(EXPR tail_at "${at} + ${len}")
+  string(SUBSTRING "${text}" ${tail_at} -1 tail)
+  file(WRITE ${CMAKE_CURRENT_BINARY_DIR}/${prefix}-wrong.txt "${head}${wrong}${tail}")
+  add_test(NAME ${prefix}_vectors_detect_mismatch
+           COMMAND sh ${expect} 1 "the Python build ${id} s ${byte}" $<TARGET_FILE:${replay}>
+                   ${CMAKE_CURRENT_BINARY_DIR}/${prefix}-wrong.txt)
+  add_test(NAME ${prefix}_vectors_detect_missing_file
+           COMMAND sh ${expect} 1 "no-such.txt: missing" $<TARGET_FILE:${replay}> no-such.txt)
+endfunction()
+
 # the RC-400's frames, packed and unpacked by code generated from its own database
 add_library(agrihil_byo_rc400 STATIC ${BYO_DIR}/fertilizer_rc400_adapter.c
             ${BYO_DIR}/generated/ratemaster_rc400.c)
@@ -25,29 +51,8 @@ if(BUILD_TESTING)
   target_link_libraries(replay_rc400 PRIVATE agrihil_byo_rc400)
   set(RC400_VECTORS ${BYO_DIR}/tests/data/rc400-physical.txt
       ${BYO_DIR}/tests/data/rc400-paper-literal.txt ${BYO_DIR}/tests/data/rc400-open-loop.txt)
-  add_test(NAME rc400_vectors COMMAND replay_rc400 ${RC400_VECTORS})
-  # the replay must see a difference: the physical vectors with the first nonzero drive
-  # command's first byte changed
-  file(READ ${BYO_DIR}/tests/data/rc400-physical.txt rc400_text)
-  string(REGEX MATCH "\nout 220 s [0-9a-f]*[1-9a-f][0-9a-f]*\n" rc400_first_command
-         "${rc400_text}")
-  string(SUBSTRING "${rc400_first_command}" 11 2 rc400_byte)
-  string(REPLACE "out 220 s ${rc400_byte}" "out 220 s ff" rc400_wrong_command
-         "${rc400_first_command}")
-  string(FIND "${rc400_text}" "${rc400_first_command}" rc400_at)
-  string(SUBSTRING "${rc400_text}" 0 ${rc400_at} rc400_head)
-  string(LENGTH "${rc400_first_command}" rc400_len)
-  math(EXPR rc400_tail_at "${rc400_at} + ${rc400_len}")
-  string(SUBSTRING "${rc400_text}" ${rc400_tail_at} -1 rc400_tail)
-  file(WRITE ${CMAKE_CURRENT_BINARY_DIR}/rc400-wrong.txt
-       "${rc400_head}${rc400_wrong_command}${rc400_tail}")
-  add_test(NAME rc400_vectors_detect_mismatch
-           COMMAND sh ${CMAKE_CURRENT_SOURCE_DIR}/tests/expect_exit.sh 1
-                   "the Python build 220 s ff" $<TARGET_FILE:replay_rc400>
-                   ${CMAKE_CURRENT_BINARY_DIR}/rc400-wrong.txt)
-  add_test(NAME rc400_vectors_detect_missing_file
-           COMMAND sh ${CMAKE_CURRENT_SOURCE_DIR}/tests/expect_exit.sh 1
-                   "no-such.txt: missing" $<TARGET_FILE:replay_rc400> no-such.txt)
+  # a changed byte: the physical vectors' first nonzero drive command with its first byte ff
+  byo_replay_tests(rc400 replay_rc400 220 "[0-9a-f]*[1-9a-f][0-9a-f]*" ff ${RC400_VECTORS})
 
   # the command line is agrihil-fertilizer-fw's
   set(RC400_FW $<TARGET_FILE:agrihil-fertilizer-rc400-fw>)
@@ -90,28 +95,8 @@ if(BUILD_TESTING)
   target_link_libraries(replay_dp200 PRIVATE agrihil_byo_dp200)
   set(DP200_VECTORS ${BYO_DIR}/tests/data-dp200/dp200-profile.txt
       ${BYO_DIR}/tests/data-dp200/dp200-defaults.txt ${BYO_DIR}/tests/data-dp200/dp200-refused.txt)
-  add_test(NAME dp200_vectors COMMAND replay_dp200 ${DP200_VECTORS})
-  # the replay must see a difference: the profile vectors with the first nonzero target
-  # velocity's first byte changed
-  file(READ ${BYO_DIR}/tests/data-dp200/dp200-profile.txt dp200_text)
-  string(REGEX MATCH "\nout 302 s [1-9a-f][0-9a-f]*\n" dp200_first_command "${dp200_text}")
-  string(SUBSTRING "${dp200_first_command}" 11 2 dp200_byte)
-  string(REPLACE "out 302 s ${dp200_byte}" "out 302 s 00" dp200_wrong_command
-         "${dp200_first_command}")
-  string(FIND "${dp200_text}" "${dp200_first_command}" dp200_at)
-  string(SUBSTRING "${dp200_text}" 0 ${dp200_at} dp200_head)
-  string(LENGTH "${dp200_first_command}" dp200_len)
-  math(EXPR dp200_tail_at "${dp200_at} + ${dp200_len}")
-  string(SUBSTRING "${dp200_text}" ${dp200_tail_at} -1 dp200_tail)
-  file(WRITE ${CMAKE_CURRENT_BINARY_DIR}/dp200-wrong.txt
-       "${dp200_head}${dp200_wrong_command}${dp200_tail}")
-  add_test(NAME dp200_vectors_detect_mismatch
-           COMMAND sh ${CMAKE_CURRENT_SOURCE_DIR}/tests/expect_exit.sh 1
-                   "the Python build 302 s 00" $<TARGET_FILE:replay_dp200>
-                   ${CMAKE_CURRENT_BINARY_DIR}/dp200-wrong.txt)
-  add_test(NAME dp200_vectors_detect_missing_file
-           COMMAND sh ${CMAKE_CURRENT_SOURCE_DIR}/tests/expect_exit.sh 1
-                   "no-such.txt: missing" $<TARGET_FILE:replay_dp200> no-such.txt)
+  # a changed byte: the profile vectors' first target velocity with a nonzero first byte, 00
+  byo_replay_tests(dp200 replay_dp200 302 "[1-9a-f][0-9a-f]*" 00 ${DP200_VECTORS})
 
   # the command line is agrihil-depth-fw's
   set(DP200_FW $<TARGET_FILE:agrihil-depth-dp200-fw>)

@@ -1,6 +1,6 @@
 """The C firmware built against another database (the DepthPro DP-200 of docs/examples/byo-depth):
-qualified with its binding, it controls as the reference C firmware does on agrihil's own
-database, to the last digit in lockstep, and it remaps the servo drive's PDOs at boot by SDO.
+qualified with its binding, it controls as the reference does on agrihil's own database, to
+the last digit in lockstep, and it remaps the servo drive's PDOs at boot by SDO.
 
 ``agrihil-depth-dp200-fw`` (firmware/byo/) packs and unpacks every frame with C code that
 cantools generates from the DP-200's database (firmware/byo/generate.sh); the control core (fuzzy
@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import dataclasses
 import fcntl
-import json
 import os
 import subprocess
 import sys
@@ -36,13 +35,14 @@ from hil.rig.runner import RunOptions, run_scenario
 from hil.rig.scenario import Event
 from hil.softbus import SoftwareBus
 from plant_emulators.sowing_depth.rig import SowingDepthRig
+from tests.reference_controllers.test_depth_byo import _measurements
 
 ROOT = Path(__file__).resolve().parents[2]
 HIL = str(Path(sys.executable).with_name("hil"))
 EXAMPLE = ROOT / "docs" / "examples" / "byo-depth"
 BINDING = EXAMPLE / "depthpro_dp200.binding.toml"
 PROFILE = EXAMPLE / "depthpro-dp200-firmware.toml"
-REFERENCE = ROOT / "dut_profiles" / "sowing-depth-fuzzy-pid-firmware.toml"
+REFERENCE = ROOT / "dut_profiles" / "sowing-depth-fuzzy-pid-daemon.toml"
 GENERATED = ROOT / "firmware" / "byo" / "generated"
 VECTORS = ROOT / "firmware" / "byo" / "tests" / "data-dp200"
 MAKE_VECTORS = ROOT / "firmware" / "byo" / "tests" / "make_vectors_dp200.py"
@@ -215,27 +215,25 @@ def test_the_profile_checks() -> None:
     assert done.returncode == 0, done.stdout + done.stderr
 
 
-def _control_measurements(record: Path) -> dict[tuple[str, str], float]:
-    """The record's ``depth.*`` values by name and conditions (the run's aside)."""
-    out = {}
-    for m in json.loads(record.read_text(encoding="utf-8"))["measurements"]:
-        if m["name"].startswith("depth."):
-            conditions = {k: v for k, v in (m.get("conditions") or {}).items() if k != "run"}
-            out[(m["name"], json.dumps(conditions, sort_keys=True))] = m["value"]
-    return out
-
-
 @pytest.mark.slow
 def test_the_dp200_firmware_qualifies_with_the_reference_measurements(tmp_path: Path) -> None:
-    """``hil qualify`` of both firmware profiles, fast and robustness suites, lockstep over the
-    software bus, seed 0: every control measurement is the same number."""
+    """``hil qualify``, fast and robustness suites, lockstep, seed 0: the DP-200 firmware over
+    the software bus and the reference (the Python controller, on the inline bus) give every
+    control measurement the same number (27 of 27 when written, ~5 min on a loaded host).
+
+    The reference C firmware (``sowing-depth-fuzzy-pid-firmware.toml``) is not the yardstick
+    here: it differs from both on ``depth.fault.speed_loss.rod_travel`` (0.031 mm against
+    7.6e-10 mm when written), because apps/depth_adapter.c takes the GNSS speed when GBSD and
+    GNSS report at the same step where the Python builds, and this one, take the source that
+    reported first (docs/examples/byo-depth/README.md)."""
     records = {}
-    for name, profile in (("ref", REFERENCE), ("dp200", PROFILE)):
+    for name, profile, bus in (("ref", REFERENCE, "inline"), ("dp200", PROFILE, "softbus")):
         out = tmp_path / name
-        done = subprocess.run([HIL, "qualify", str(profile), "--bus", "softbus",
+        done = subprocess.run([HIL, "qualify", str(profile), "--bus", bus,
                                "--suite", "fast,robustness", "--out", str(out), "--quiet"],
                               cwd=ROOT, capture_output=True, text=True)
         assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
-        records[name] = _control_measurements(out / "record.json")
+        records[name] = _measurements(out / "record.json")
     assert len(records["ref"]) > 20
+    assert ("depth.fault.speed_loss.rod_travel", "{}") in records["ref"]
     assert records["dp200"] == records["ref"]
