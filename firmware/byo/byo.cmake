@@ -30,25 +30,33 @@ function(byo_replay_tests prefix replay id data_regex byte)
            COMMAND sh ${expect} 1 "no-such.txt: missing" $<TARGET_FILE:${replay}> no-such.txt)
 endfunction()
 
-# the RC-400's frames, packed and unpacked by code generated from its own database
-add_library(agrihil_byo_rc400 STATIC ${BYO_DIR}/fertilizer_rc400_adapter.c
-            ${BYO_DIR}/generated/ratemaster_rc400.c)
-target_include_directories(agrihil_byo_rc400 PUBLIC ${BYO_DIR} ${BYO_DIR}/generated
-                           ${CMAKE_CURRENT_SOURCE_DIR}/hal)
-target_link_libraries(agrihil_byo_rc400 PUBLIC agrihil_core)
+# One controller on a foreign database: its bus layer (agrihil_byo_<short>: the adapter and the
+# code generated from its database), its program, and when testing the adapter's unit tests
+# (test_<short>_adapter, ctest <short>_adapter) and its replay program (replay_<short>).
+function(byo_controller short program adapter generated main)
+  add_library(agrihil_byo_${short} STATIC ${BYO_DIR}/${adapter}
+              ${BYO_DIR}/generated/${generated})
+  target_include_directories(agrihil_byo_${short} PUBLIC ${BYO_DIR} ${BYO_DIR}/generated
+                             ${CMAKE_CURRENT_SOURCE_DIR}/hal)
+  target_link_libraries(agrihil_byo_${short} PUBLIC agrihil_core)
+  add_executable(${program} ${BYO_DIR}/${main})
+  target_link_libraries(${program} PRIVATE agrihil_byo_${short} agrihil_app)
+  if(BUILD_TESTING)
+    add_executable(test_${short}_adapter ${BYO_DIR}/tests/test_${short}_adapter.c)
+    target_include_directories(test_${short}_adapter PRIVATE ${CMAKE_CURRENT_SOURCE_DIR}/tests)
+    target_link_libraries(test_${short}_adapter PRIVATE agrihil_byo_${short})
+    add_test(NAME ${short}_adapter COMMAND test_${short}_adapter)
+    add_executable(replay_${short} ${BYO_DIR}/tests/replay_${short}.c ${BYO_DIR}/tests/replay.c)
+    target_link_libraries(replay_${short} PRIVATE agrihil_byo_${short})
+  endif()
+endfunction()
 
-add_executable(agrihil-fertilizer-rc400-fw ${BYO_DIR}/fertilizer_rc400_main.c)
-target_link_libraries(agrihil-fertilizer-rc400-fw PRIVATE agrihil_byo_rc400 agrihil_app)
+# the RC-400's frames, packed and unpacked by code generated from its own database
+byo_controller(rc400 agrihil-fertilizer-rc400-fw fertilizer_rc400_adapter.c ratemaster_rc400.c
+               fertilizer_rc400_main.c)
 
 if(BUILD_TESTING)
-  add_executable(test_rc400_adapter ${BYO_DIR}/tests/test_rc400_adapter.c)
-  target_include_directories(test_rc400_adapter PRIVATE ${CMAKE_CURRENT_SOURCE_DIR}/tests)
-  target_link_libraries(test_rc400_adapter PRIVATE agrihil_byo_rc400)
-  add_test(NAME rc400_adapter COMMAND test_rc400_adapter)
-
   # the Python build's frames (tests/make_vectors.py from dbc_adapter.py), byte for byte
-  add_executable(replay_rc400 ${BYO_DIR}/tests/replay_rc400.c ${BYO_DIR}/tests/replay.c)
-  target_link_libraries(replay_rc400 PRIVATE agrihil_byo_rc400)
   set(RC400_VECTORS ${BYO_DIR}/tests/data/rc400-physical.txt
       ${BYO_DIR}/tests/data/rc400-paper-literal.txt ${BYO_DIR}/tests/data/rc400-open-loop.txt)
   # a changed byte: the physical vectors' first nonzero drive command with its first byte ff
@@ -75,24 +83,11 @@ endif()
 # layout (docs/examples/byo-depth/depthpro_dp200.dbc), its bus layer generated from that
 # database by cantools (generate.sh -> generated/); the control core (fuzzy PID, roller hold)
 # is the reference firmware's, unchanged. At boot it remaps the drive's PDOs by SDO.
-add_library(agrihil_byo_dp200 STATIC ${BYO_DIR}/depth_dp200_adapter.c
-            ${BYO_DIR}/generated/depthpro_dp200.c)
-target_include_directories(agrihil_byo_dp200 PUBLIC ${BYO_DIR} ${BYO_DIR}/generated
-                           ${CMAKE_CURRENT_SOURCE_DIR}/hal)
-target_link_libraries(agrihil_byo_dp200 PUBLIC agrihil_core)
-
-add_executable(agrihil-depth-dp200-fw ${BYO_DIR}/depth_dp200_main.c)
-target_link_libraries(agrihil-depth-dp200-fw PRIVATE agrihil_byo_dp200 agrihil_app)
+byo_controller(dp200 agrihil-depth-dp200-fw depth_dp200_adapter.c depthpro_dp200.c
+               depth_dp200_main.c)
 
 if(BUILD_TESTING)
-  add_executable(test_dp200_adapter ${BYO_DIR}/tests/test_dp200_adapter.c)
-  target_include_directories(test_dp200_adapter PRIVATE ${CMAKE_CURRENT_SOURCE_DIR}/tests)
-  target_link_libraries(test_dp200_adapter PRIVATE agrihil_byo_dp200)
-  add_test(NAME dp200_adapter COMMAND test_dp200_adapter)
-
   # the Python build's frames (tests/make_vectors_dp200.py from dbc_adapter.py), byte for byte
-  add_executable(replay_dp200 ${BYO_DIR}/tests/replay_dp200.c ${BYO_DIR}/tests/replay.c)
-  target_link_libraries(replay_dp200 PRIVATE agrihil_byo_dp200)
   set(DP200_VECTORS ${BYO_DIR}/tests/data-dp200/dp200-profile.txt
       ${BYO_DIR}/tests/data-dp200/dp200-defaults.txt ${BYO_DIR}/tests/data-dp200/dp200-refused.txt)
   # a changed byte: the profile vectors' first target velocity with a nonzero first byte, 00
