@@ -5,6 +5,20 @@ against one full qualification, worker RSS over the campaign.
     python benchmarks/bench_campaign.py --samples 40 --quick     # smaller N, extrapolated
     python benchmarks/bench_campaign.py --samples 300 --pair-samples 40   # the target, measured
 
+Per-sample cost today against an earlier revision, side by side in one run (issue 29):
+
+    python benchmarks/bench_campaign.py --rig depth --baseline 7700266 --samples 6
+
+runs the same seeds one at a time (a campaign sample's pytest command: fast + robustness
+suites, nominal rig, the Python reference controller in process on the inline bus, the
+README's seeds), alternating between a git worktree of the baseline revision and this tree, and
+prints each one's median CPU time per sample (user + system from getrusage: steadier than wall
+time on a shared machine; a fresh interpreter per sample, as ``--isolation process``), the CPU
+a 300-sample campaign on 2 cores takes at that rate, and whether both gave the same
+measurements seed by seed. The baseline imports its own Python sources (PYTHONPATH) with this
+tree's compiled twins, which it accepts only when their C sources are the same at both
+revisions (a twin the baseline does not have is not copied).
+
 Prints the figures; asserts nothing about time (figures, not tests). The machine's load average
 is printed with them: on a shared machine the figures are only as good as that.
 """
@@ -14,6 +28,8 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -23,6 +39,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 FIRMWARE = ROOT / "dut_profiles/fertilizer-piecewise-pid-firmware.toml"
 DAEMON = ROOT / "dut_profiles/fertilizer-piecewise-pid-daemon.toml"
+#: per rig: its reference profile in process (as the README's 300-sample campaigns) and seed
+REFERENCE = {"fertilizer": ("dut_profiles/fertilizer-piecewise-pid-daemon.toml", 8500000),
+             "depth": ("dut_profiles/sowing-depth-fuzzy-pid-daemon.toml", 8700000)}
+RIG_SUITES = {"fertilizer": "fertilizer", "depth": "sowing_depth"}
 
 
 def campaign(profile: Path, samples: int, workers: int, bus: str, out: Path,
@@ -35,6 +55,89 @@ def campaign(profile: Path, samples: int, workers: int, bus: str, out: Path,
     doc = json.loads((out / "campaign.json").read_text())
     doc["_wall"] = time.perf_counter() - t0
     return doc
+
+
+def _children_cpu_s() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def _baseline_tree(rev: str, where: Path) -> Path:
+    """A worktree of ``rev`` at ``where`` with this tree's compiled twins copied in.
+
+    Exits 2 naming the twin when its C sources differ between ``rev`` and this tree.
+    """
+    subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(where), rev],
+                   check=True, stdout=subprocess.DEVNULL)
+    for lib in ROOT.glob("plant_emulators/**/_*_native*.so"):
+        package = lib.parent.relative_to(ROOT)
+        if not (where / package / "native").is_dir():
+            continue                        # a twin the baseline does not have
+        same = subprocess.run(["git", "-C", str(ROOT), "diff", "--quiet", rev, "--",
+                               str(package / "native"), "plant_emulators/native"],
+                              check=False).returncode == 0
+        if not same:
+            raise SystemExit(f"bench_campaign: {package / 'native'} differs at {rev}: build "
+                             f"the baseline's own twins to compare with it")
+        shutil.copy2(lib, where / package / lib.name)
+    return where
+
+
+def _sample_cpu(root: Path, rig: str, profile: str, seed: int, out: Path) -> float:
+    """CPU seconds (user + system) of one campaign sample of ``profile`` run from ``root``.
+
+    The pytest command a campaign sample runs (``hil.campaign.sample.pytest_argv``, record
+    ``measurements``), started here as a child so that its rusage is exact (a campaign's
+    forked samples are reaped by Dask's fork servers, whose rusage never reaches this process).
+    """
+    suites = root / "test_suites"
+    before = _children_cpu_s()
+    subprocess.run([sys.executable, "-m", "pytest", str(suites / RIG_SUITES[rig]), "-c",
+                    str(suites / "pytest.ini"), "--rootdir", str(suites / RIG_SUITES[rig]),
+                    "-p", "no:cacheprovider", "-q", "--no-header", "--hil-dut",
+                    str(root / profile), "--hil-bus", "inline", "--hil-clock", "lockstep",
+                    "--hil-report", str(out), "--hil-suite", "fast,robustness", "--hil-seed",
+                    str(seed), "--hil-record", "measurements", "-p", "no:hypothesispytest",
+                    "-p", "no:benchmark"], check=False, cwd=root,
+                   env={**os.environ, "PYTHONPATH": str(root), "PYTHONHASHSEED": "0"},
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    return _children_cpu_s() - before
+
+
+def paired(rig: str, rev: str, samples: int, base: Path) -> None:
+    """Per-sample CPU of ``rig``'s reference campaign samples at ``rev`` and here, same seeds.
+
+    The samples run one at a time, alternating between the trees (so that a change in the
+    machine's load falls on both); each one's measurements are compared between the trees.
+    """
+    profile, seed = REFERENCE[rig]
+    tree = base / "baseline"
+    trees = {f"baseline {rev}": tree, "this tree": ROOT}
+    cpu: dict[str, list[float]] = {label: [] for label in trees}
+    differ = []
+    try:
+        _baseline_tree(rev, tree)
+        for i in range(samples):
+            values = []
+            for label, root in trees.items():
+                out = base / f"{label.replace(' ', '-')}-{i}"
+                cpu[label].append(_sample_cpu(root, rig, profile, seed + i, out))
+                record = json.loads((out / "record.json").read_text())
+                values.append([(m["name"], m["conditions"], m["value"], m["outcome"])
+                               for m in record["measurements"]])
+            if values[0] != values[1]:
+                differ.append(seed + i)
+        for label, times in cpu.items():
+            per = sorted(times)[len(times) // 2]
+            print(f"{rig} reference sample (fast + robustness, inline, in process), {label}: "
+                  f"median {per:.2f} s CPU over {len(times)} samples (min {min(times):.2f}, "
+                  f"max {max(times):.2f}); 300 samples on 2 cores: "
+                  f"{300 * per / 2 / 60:.1f} min of CPU")
+        print(f"measurements seed by seed ({seed}-{seed + samples - 1}): "
+              f"{'the same' if not differ else f'differ at seeds {differ}'}")
+    finally:
+        subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(tree)],
+                       check=False)
 
 
 def qualify_s(profile: Path, bus: str, out: Path) -> float:
@@ -53,9 +156,19 @@ def main() -> None:
                              "N, or N/2 with --quick)")
     parser.add_argument("--quick", action="store_true",
                         help="smaller throughput runs (N/2 samples) for the 1-vs-2 figure")
+    parser.add_argument("--rig", choices=sorted(REFERENCE), default="fertilizer",
+                        help="the rig of --baseline's paired figure")
+    parser.add_argument("--baseline", metavar="REV", default=None,
+                        help="only the per-sample CPU of --rig's reference campaign samples at "
+                             "git revision REV beside this tree's (--samples seeds each)")
     args = parser.parse_args()
     n = args.samples
     print(f"load average at start: {os.getloadavg()}")
+    if args.baseline is not None:
+        with tempfile.TemporaryDirectory() as tmp:
+            paired(args.rig, args.baseline, n, Path(tmp))
+        print(f"load average at end: {os.getloadavg()}")
+        return
     with tempfile.TemporaryDirectory() as tmp:
         base = Path(tmp)
         single = {bus: qualify_s(p, bus, base / f"q-{bus}")

@@ -1,8 +1,10 @@
 """Which implementation runs the rigs' hot loops: the compiled twins or the Python models.
 
 The fertilizer rig's per-step models (the drive, meter and transport of
-:mod:`~plant_emulators.fertilizer.physics`, ...) exist twice: the Python model, which is the
-readable reference, and a C twin compiled with the package (``pip install -e .`` builds it, as
+:mod:`~plant_emulators.fertilizer.physics`, ...) and the sowing-depth drive's steady
+profile-velocity loop (:meth:`~plant_emulators.sowing_depth.cia402.Cia402Drive.run_pv_native`)
+exist twice: the Python model, which is the readable reference, and a C twin compiled with the
+package (``pip install -e .`` builds it, as
 ``scripts/setup.sh`` does). The twin does the same floating-point operations in the same order,
 so both give the same floats bit for bit; the tests run both and compare. The twin is what
 makes a lockstep run several times faster.
