@@ -191,3 +191,24 @@ def test_both_engines_leave_the_same_run(tmp_path: Path, scenario: str,
             np.testing.assert_array_equal(a[key], b[key], err_msg=key)
     assert json.dumps(records["python"]["truth"]) == json.dumps(records["native"]["truth"])
     assert (py / "bus.log").stat().st_size > 10_000        # a real run, not an empty one
+
+
+def test_the_engine_comes_from_the_environment_and_a_missing_twin_is_an_error(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    cfg = load_rig_config()
+    monkeypatch.setenv(ENV_VAR, "python")
+    assert SowingDepthPlant(cfg, np.random.default_rng(0)).engine == "python"
+    monkeypatch.delenv(ENV_VAR)
+    assert SowingDepthPlant(cfg, np.random.default_rng(0)).engine == "native"
+    with pytest.raises(ValueError, match="engine must be one of"):
+        SowingDepthPlant(cfg, np.random.default_rng(0), engine="fast")
+    import plant_emulators.sowing_depth.physics as physics
+
+    def missing(module: str) -> None:
+        raise ImportError(f"the compiled physics {module} is not built here: ... "
+                          f"scripts/setup.sh ... {ENV_VAR}=python")
+
+    monkeypatch.setattr(physics, "load_native", missing)
+    with pytest.raises(ImportError, match=r"_drive_cycle_native.*scripts/setup\.sh"):
+        SowingDepthPlant(cfg, np.random.default_rng(0))            # no silent fallback
+    assert SowingDepthPlant(cfg, np.random.default_rng(0), engine="python")._native is None
