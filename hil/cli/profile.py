@@ -149,7 +149,7 @@ def _show(args: argparse.Namespace) -> int:
 
 
 def _bind(args: argparse.Namespace) -> int:
-    from hil.contract.bind import write_binding
+    from hil.contract.bind import counts, write_binding
 
     database = Path(args.database)
     if not database.is_file():
@@ -166,6 +166,6 @@ def _bind(args: argparse.Namespace) -> int:
         sys.stdout.write(text)
     else:
         output.write_text(text, encoding="utf-8")
-        todo = text.count("TODO")
-        print(f"wrote {output}: {text.count(' = { ')} quantities bound, {todo} TODO")
+        bound, todo = counts(text)
+        print(f"wrote {output}: {bound} quantities bound, {todo} TODO")
     return 0
