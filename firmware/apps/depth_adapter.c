@@ -69,6 +69,18 @@ int depth_config_check(const depth_config_t *cfg, char *err, size_t errlen)
     return 0;
 }
 
+/* Remember the order in which the speed sources first reported: of two equally fresh speeds
+ * the one whose source reported first counts (the Python reference's rule). */
+static void note_speed_source(depth_adapter_t *a, int source)
+{
+    for (int k = 0; k < a->speed_sources; k++) {
+        if (a->speed_order[k] == source) {
+            return;
+        }
+    }
+    a->speed_order[a->speed_sources++] = (uint8_t)source;
+}
+
 void depth_init(depth_adapter_t *a, const depth_config_t *cfg)
 {
     memset(a, 0, sizeof *a);
@@ -190,6 +202,7 @@ size_t depth_on_frame(depth_adapter_t *a, const hal_can_frame_t *f, double now_s
         if (sowing_depth_gbsd_unpack(&m, f->data, f->len) < 0) {
             break;
         }
+        note_speed_source(a, SRC_GBSD);
         if (m.gbsd_ground_speed > J1939_SPEED_MAX_RAW) {
             a->have_speed[SRC_GBSD] = false;
             break;
@@ -207,9 +220,23 @@ size_t depth_on_frame(depth_adapter_t *a, const hal_can_frame_t *f, double now_s
 
 void depth_on_gnss(depth_adapter_t *a, bool valid, double speed_mps, double now_s)
 {
-    a->have_speed[SRC_GNSS] = valid;
-    if (valid) {
-        a->speed_mps[SRC_GNSS] = speed_mps;
+    (void)now_s; /* stamped with the time of the step that applies it */
+    a->gnss_pending = true;
+    a->gnss_pending_valid = valid;
+    a->gnss_pending_mps = speed_mps;
+}
+
+/* The GNSS reports since the last step, at the step's time (after the step's frames). */
+static void apply_gnss(depth_adapter_t *a, double now_s)
+{
+    if (!a->gnss_pending) {
+        return;
+    }
+    a->gnss_pending = false;
+    note_speed_source(a, SRC_GNSS);
+    a->have_speed[SRC_GNSS] = a->gnss_pending_valid;
+    if (a->gnss_pending_valid) {
+        a->speed_mps[SRC_GNSS] = a->gnss_pending_mps;
         a->speed_at_s[SRC_GNSS] = now_s;
     }
 }
@@ -218,9 +245,10 @@ void depth_on_gnss(depth_adapter_t *a, bool valid, double speed_mps, double now_
 static bool ground_speed(const depth_adapter_t *a, double now_s, double *mps)
 {
     int best = -1;
-    for (int i = 0; i < 2; i++) {
+    for (int k = 0; k < a->speed_sources; k++) {
+        int i = a->speed_order[k];
         if (a->have_speed[i] && now_s - a->speed_at_s[i] <= a->cfg.speed_timeout_s + 1e-9 &&
-            (best < 0 || a->speed_at_s[i] >= a->speed_at_s[best])) {
+            (best < 0 || a->speed_at_s[i] > a->speed_at_s[best])) {
             best = i;
         }
     }
@@ -258,6 +286,7 @@ static void pad_status(uint8_t data[8])
 
 size_t depth_step(depth_adapter_t *a, double now_s, hal_can_frame_t out[DEPTH_MAX_OUT])
 {
+    apply_gnss(a, now_s);
     depth_step_info_t *info = &a->last;
     memset(info, 0, sizeof *info);
     size_t n = 0;

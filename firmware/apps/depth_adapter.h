@@ -97,10 +97,19 @@ typedef struct {
     bool have_x;
     double last_x_mv;
     double x_changed_at_s;
-    /* ground speed by source: [0] GBSD (PGN 65097), [1] GNSS; the fresher valid one counts */
+    /* ground speed by source: [0] GBSD (PGN 65097), [1] GNSS; the fresher valid one counts,
+     * and of two as fresh the one that reported first (speed_order: the sources in the order
+     * of their first report, valid or not, as the Python reference's dict keeps them) */
     bool have_speed[2];
     double speed_mps[2];
     double speed_at_s[2];
+    uint8_t speed_order[2];
+    uint8_t speed_sources;
+    /* the GNSS reports since the last step, applied at the start of the next (the Python
+     * reference polls its receiver there): the latest one, valid or not */
+    bool gnss_pending;
+    bool gnss_pending_valid;
+    double gnss_pending_mps;
     uint32_t steps;
     uint8_t status_counter;
     depth_step_info_t last;
@@ -128,7 +137,9 @@ uint16_t depth_next_controlword(uint16_t statusword);
 size_t depth_on_frame(depth_adapter_t *a, const hal_can_frame_t *frame, double now_s,
                       hal_can_frame_t out[DEPTH_MAX_OUT]);
 
-/* A ground speed from the GNSS receiver (valid fix), or a no-fix report (valid = false). */
+/* A ground speed from the GNSS receiver (valid fix), or a no-fix report (valid = false). It
+ * takes effect at the next depth_step, stamped with that step's time, as the Python reference
+ * reads its receiver at the start of a step (now_s is not used). */
 void depth_on_gnss(depth_adapter_t *a, bool valid, double speed_mps, double now_s);
 
 size_t depth_step(depth_adapter_t *a, double now_s, hal_can_frame_t out[DEPTH_MAX_OUT]);

@@ -281,6 +281,38 @@ static void test_enable_conditions(void)
     CHECK(!a.last.speed_known);
 }
 
+/* Two speeds as fresh as each other: the source that reported first counts (the Python
+ * reference's rule: its sources keep the order of their first report, and it reads the GNSS
+ * at the start of a step, after the step's frames); a fresher one always counts. A GBSD
+ * below the 0.1 m/s control threshold against a GNSS above it tells which. */
+static void test_equally_fresh_speeds(void)
+{
+    make_ready(0.05); /* GBSD reports first, below the threshold */
+    depth_on_gnss(&a, true, 1.2, 0.0);
+    depth_step(&a, 0.0, out);
+    CHECK(a.last.speed_known && !a.last.enabled);
+    depth_on_gnss(&a, true, 1.2, 0.01); /* fresher: the GNSS counts */
+    depth_step(&a, 0.01, out);
+    CHECK(a.last.enabled);
+    make_ready(-1.0); /* no GBSD yet */
+    hal_can_frame_t g = gbsd(0.05);
+    depth_on_gnss(&a, true, 1.2, 0.0); /* read at the step, after the GBSD frame */
+    depth_on_frame(&a, &g, 0.0, out);
+    depth_step(&a, 0.0, out);
+    CHECK(a.last.speed_known && !a.last.enabled);
+    make_ready(-1.0);
+    depth_on_gnss(&a, true, 1.2, 0.0); /* the GNSS reports a step before the GBSD */
+    depth_step(&a, 0.0, out);
+    CHECK(a.last.enabled);
+    depth_on_frame(&a, &g, 0.01, out);
+    depth_on_gnss(&a, true, 1.2, 0.01);
+    depth_step(&a, 0.01, out);
+    CHECK(a.last.enabled);
+    depth_on_frame(&a, &g, 0.02, out); /* fresher: the GBSD counts */
+    depth_step(&a, 0.02, out);
+    CHECK(!a.last.enabled);
+}
+
 /* One step at i * 10 ms (the lockstep clock), after an inclinometer frame with X = x_mv
  * (none if x_mv < 0) and a fresh 1 m/s ground speed; returns the target velocity of the RPDO2
  * and sets *fault to the status frame's SensorFault (-1 on steps without a status frame). */
@@ -590,7 +622,8 @@ static void test_hold_off_and_config(void)
 }
 
 TEST_MAIN("depth_adapter", test_nmt_start, test_controlwords, test_depth_filter,
-          test_control_step, test_enable_conditions, test_frozen_inclinometer,
+          test_control_step, test_enable_conditions, test_equally_fresh_speeds,
+          test_frozen_inclinometer,
           test_frozen_check_off, test_bad_status_holds, test_config_check,
           test_hold_at_mean_position, test_hold_target_at_last_sign_of_life,
           test_hold_loop_no_overshoot, test_hold_off_and_config)

@@ -221,11 +221,10 @@ def test_the_dp200_firmware_qualifies_with_the_reference_measurements(tmp_path: 
     the software bus and the reference (the Python controller, on the inline bus) give every
     control measurement the same number (27 of 27 when written, ~5 min on a loaded host).
 
-    The reference C firmware (``sowing-depth-fuzzy-pid-firmware.toml``) is not the yardstick
-    here: it differs from both on ``depth.fault.speed_loss.rod_travel`` (0.031 mm against
-    7.6e-10 mm when written), because apps/depth_adapter.c takes the GNSS speed when GBSD and
-    GNSS report at the same step where the Python builds, and this one, take the source that
-    reported first (docs/examples/byo-depth/README.md)."""
+    The Python controller is the yardstick, as for every build of the depth law. (The
+    reference C firmware gave 0.031 mm on ``depth.fault.speed_loss.rod_travel`` against
+    7.6e-10 mm until apps/depth_adapter.c read the GNSS speed at the start of a step, as the
+    Python builds and this one do; it now gives the same.)"""
     records = {}
     for name, profile, bus in (("ref", REFERENCE, "inline"), ("dp200", PROFILE, "softbus")):
         out = tmp_path / name
