@@ -33,6 +33,7 @@ void fert_init(fert_adapter_t *a, const fert_config_t *cfg)
     a->active_mode = -1;
     a->rows_follow_setpoint = true;
     ppid_reset(&a->core);
+    xrow_init(&a->xrow, cfg->period_s);
 }
 
 static hal_can_frame_t frame_of(uint32_t id, bool extended, uint8_t len)
@@ -171,29 +172,35 @@ size_t fert_step(fert_adapter_t *a, double now_s, hal_can_frame_t out[FERT_MAX_O
     double q = target_gps(a);
     info->target_gps = q;
 
-    /* valid rows: baseline acquired, in range, fresh, plausible (Flow <= 3 Q + 5) */
-    double sum = 0.0;
-    int valid = 0;
-    bool fresh_valid = false;
+    /* valid rows: baseline acquired, in range, fresh, plausible (Flow <= 3 Q + 5), and in
+     * agreement with the other valid rows (core/cross_row.h) */
+    double flows[FERT_ROWS];
+    bool passed[FERT_ROWS];
+    bool excluded[FERT_ROWS];
+    bool reported[FERT_ROWS];
     /* rows 1..ActiveRows meter; the others' clutches are out (their modules read 0) */
     int active = a->rows_follow_setpoint && a->setpoint.seen && a->setpoint.active_rows > 0
                      ? (int)a->setpoint.active_rows
                      : FERT_ROWS;
     for (int i = 0; i < FERT_ROWS; i++) {
         fert_row_t *r = &a->rows[i];
-        if (i >= active) {
-            r->reported = false;
-            continue;
-        }
-        bool ok = r->seen && r->baseline_ready && !r->overrange &&
-                  now_s - r->at_s <= a->cfg.stale_after_s + STALE_SLACK_S &&
-                  r->flow_gps <= 3.0 * q + 5.0;
-        if (ok) {
-            sum += r->flow_gps;
-            valid++;
-            fresh_valid = fresh_valid || r->reported;
-        }
+        flows[i] = r->flow_gps;
+        reported[i] = r->reported;
+        passed[i] = i < active && r->seen && r->baseline_ready && !r->overrange &&
+                    now_s - r->at_s <= a->cfg.stale_after_s + STALE_SLACK_S &&
+                    r->flow_gps <= 3.0 * q + 5.0;
         r->reported = false;
+    }
+    xrow_step(&a->xrow, FERT_ROWS, flows, passed, excluded);
+    double sum = 0.0;
+    int valid = 0;
+    bool fresh_valid = false;
+    for (int i = 0; i < FERT_ROWS; i++) {
+        if (passed[i] && !excluded[i]) {
+            sum += flows[i];
+            valid++;
+            fresh_valid = fresh_valid || reported[i];
+        }
     }
     info->has_measurement = valid > 0;
     info->measured_gps = valid > 0 ? sum / (double)valid : 0.0;

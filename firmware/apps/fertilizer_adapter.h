@@ -9,9 +9,10 @@
  *   out  AnalogOutputCommand 0x220 every step, ControllerStatus 0x190 every 10th step (the
  *        first step included), ControllerHeartbeat 0x710 (Operational) every step, boot-up 0x710
  *        [0x00] at start.
- * Terminal mode 2 (constant speed) runs the open-loop law whatever the law; a change of
- * terminal mode resets the closed-loop core (as the Python build does). Ground speeds are
- * held until the next frame (no time-out); a J1939 "not available" speed counts as 0. */
+ * A valid row that disagrees with the other valid rows is left out of the mean (the cross-row
+ * check, core/cross_row.h). Terminal mode 2 (constant speed) runs the open-loop law whatever
+ * the law; a change of terminal mode resets the closed-loop core (as the Python build does).
+ * Ground speeds are held until the next frame (no time-out); a J1939 "not available" speed counts as 0. */
 #ifndef AGRIHIL_FERTILIZER_ADAPTER_H
 #define AGRIHIL_FERTILIZER_ADAPTER_H
 
@@ -19,6 +20,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "cross_row.h"
 #include "hal_can.h"
 #include "piecewise_pid.h"
 
@@ -75,6 +77,7 @@ typedef struct {
     int active_mode; /* terminal mode of the previous step (-1 before the first) */
     fert_setpoint_t setpoint;
     fert_row_t rows[FERT_ROWS];
+    xrow_state_t xrow; /* cross-row plausibility of the rows' reports */
     fert_speed_t speed[3]; /* by SpeedSource */
     uint32_t steps;
     fert_step_info_t last;

@@ -47,6 +47,7 @@ void rc400_init(rc400_adapter_t *a, const rc400_config_t *cfg)
     a->cfg = *cfg;
     a->active_mode = -1;
     ppid_reset(&a->core);
+    xrow_init(&a->xrow, cfg->period_s);
 }
 
 static hal_can_frame_t frame_of(uint32_t id, bool extended, uint8_t len)
@@ -263,27 +264,34 @@ static double clamp(double x, double lo, double hi)
 }
 
 /* The rows' mean flow, whether any is valid, whether a valid one reported since the last step
- * (rows in ascending order, as the Python build sums them); clears the fresh flags. */
+ * (rows in ascending order, as the Python build sums them); clears the fresh flags. A row that
+ * passes its own checks and disagrees with the others is left out (core/cross_row.h). */
 static void measure(rc400_adapter_t *a, double target, rc400_step_info_t *info)
 {
     double stale_steps = a->cfg.stale_after_s / a->cfg.period_s;
+    double flows[RC400_ROWS];
+    bool passed[RC400_ROWS];
+    bool excluded[RC400_ROWS];
+    bool fresh_row[RC400_ROWS];
+    for (int i = 0; i < RC400_ROWS; i++) {
+        rc400_row_t *r = &a->rows[i];
+        flows[i] = r->flow_gps;
+        fresh_row[i] = r->fresh;
+        passed[i] = r->seen && r->measuring && !r->overrange &&
+                    (double)(a->steps - r->at_step) <= stale_steps + STALE_SLACK_STEPS &&
+                    r->flow_gps <= 3.0 * target + 5.0;
+        r->fresh = false;
+    }
+    xrow_step(&a->xrow, RC400_ROWS, flows, passed, excluded);
     double sum = 0.0;
     int valid = 0;
     bool fresh = false;
     for (int i = 0; i < RC400_ROWS; i++) {
-        rc400_row_t *r = &a->rows[i];
-        if (!r->seen) {
-            continue;
-        }
-        bool ok = r->measuring && !r->overrange &&
-                  (double)(a->steps - r->at_step) <= stale_steps + STALE_SLACK_STEPS &&
-                  r->flow_gps <= 3.0 * target + 5.0;
-        if (ok) {
-            sum += r->flow_gps;
+        if (passed[i] && !excluded[i]) {
+            sum += flows[i];
             valid++;
-            fresh = fresh || r->fresh;
+            fresh = fresh || fresh_row[i];
         }
-        r->fresh = false;
     }
     info->has_measurement = valid > 0;
     info->measured_gps = valid > 0 ? sum / (double)valid : 0.0;

@@ -26,7 +26,8 @@
  *   - SpeedSrc WheelSensor = the ground wheel (0x1B5), TractorWheel = PGN 65096, Radar =
  *     PGN 65097, None = no speed; a speed outside 0 - 64.255 m/s counts as 0;
  *   - a row is valid when its State is Measuring, its Diag is not CapOverrange, its report is at
- *     most stale_after_s / period_s steps old and its flow is at most 3 Q + 5 g/s;
+ *     most stale_after_s / period_s steps old and its flow is at most 3 Q + 5 g/s, and it
+ *     agrees with the other valid rows (the cross-row check, core/cross_row.h);
  *   - field target 0.1 M D v / max(1, Sections); enabled when a set-point has Run = 1;
  *   - age is counted in control steps (the controller's tick counter), as the Python build's. */
 #ifndef AGRIHIL_FERTILIZER_RC400_ADAPTER_H
@@ -36,6 +37,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "cross_row.h"
 #include "hal_can.h"
 #include "piecewise_pid.h"
 #include "ratemaster_rc400.h"
@@ -82,6 +84,7 @@ typedef struct {
     bool has_setpoint;
     struct ratemaster_rc400_rc_command_t setpoint; /* the last RC_Command, as on the bus */
     rc400_row_t rows[RC400_ROWS];
+    xrow_state_t xrow; /* cross-row plausibility of the rows' reports */
     double speed_mps[3]; /* ground wheel, tractor wheel-based, radar */
     uint32_t steps;
     rc400_step_info_t last;

@@ -82,8 +82,11 @@ def frame_text(msg: can.Message) -> str:
 class RecordingNode(Device):
     """The controller on the wire (SYNC every period, an ideal meter), recording its frames."""
 
-    def __init__(self, controller: IsobusFlowController) -> None:
+    def __init__(self, controller: IsobusFlowController,
+                 wrong_row: tuple[int, float, float, float] | None = None) -> None:
         self.ctl = controller
+        #: (row, gain, from s, to s): that row's module reads gain x the flow meanwhile
+        self.wrong_row = wrong_row
         self.period_s = controller.adapter_params.period_s
         self.lines: list[str] = [f"> {frame_text(f)}" for f in controller.on_start()]
         self._last_target = 0.0
@@ -100,8 +103,13 @@ class RecordingNode(Device):
 
     def emit(self, time_s: float) -> list[can.Message]:
         for row in sorted(self.ctl.rows.active):
+            flow = self._last_target
+            if self.wrong_row is not None:
+                wrong, gain, start_s, end_s = self.wrong_row
+                if row == wrong and start_s <= time_s < end_s:
+                    flow = round(flow * gain, 2)
             self._feed(self._db.encode(f"FlowModule{row}", {
-                "Flow": self._last_target, "WindowMass": self._last_target, "Counter": 1,
+                "Flow": flow, "WindowMass": flow, "Counter": 1,
                 "BaselineReady": 1, "SlidingWindow": 1, "AdcOverrange": 0,
                 "InterceptApplied": 0, "WindowLength": 1000}))
         out = self._feed(SYNC)
@@ -130,6 +138,8 @@ class Scenario:
     drop: Callable[[can.Message, int], bool] | None = None
     #: instead of the emulated tractor, a scripted peer: (run time, frame) to send
     script: Callable[[], list[tuple[float, can.Message]]] | None = None
+    #: (row, gain, from s, to s): that row's module reads gain x the flow with good flags
+    wrong_row: tuple[int, float, float, float] | None = None
 
 
 def _tractor(slip: float, faults: IsobusFaults) -> Tractor:
@@ -143,7 +153,7 @@ def record(s: Scenario) -> list[str]:
     """Run ``s`` and return the vector file's lines."""
     ctl = IsobusFlowController(str(s.params["law"]),
                                {k: v for k, v in s.params.items() if k != "law"})
-    node = RecordingNode(ctl)
+    node = RecordingNode(ctl, s.wrong_row)
     if s.script is not None:
         wire = VirtualWire([ScriptedNode(s.script(), "scripted TC"), node])
         wire.run_until(s.end_s)
@@ -435,10 +445,12 @@ def scenarios() -> list[Scenario]:
             "The example field: three passes over three rate zones, headland turns, an\n"
             "overlapping fourth pass (two rows off); the pool transfer's third CTS dropped\n"
             "(T3 abort, transfer timeout, new attempt); a TC restart of 8 s at 45 s, one of\n"
-            "1 s at 80 s (NACK); TECU speed frames lost from 95 s to 97 s.",
+            "1 s at 80 s (NACK); TECU speed frames lost from 95 s to 97 s; row 2's module\n"
+            "reads 60 % of the flow with good flags from 20 s to 35 s (the cross-row check).",
             {"law": "physical", "speed": "ground", "ddop": "valid"},
             drive_end, faults=_drop_first_cts,
             actions=((45.0, _restart(8.0)), (80.0, _restart(1.0))),
+            wrong_row=(2, 0.6, 20.0, 35.0),
             drop=_speed_silent(95.0, 97.0)),
         Scenario(
             "isobus-refused",

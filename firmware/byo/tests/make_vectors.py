@@ -4,7 +4,9 @@ dbc_adapter.py), for the C build to replay (firmware/byo/tests/replay_rc400.c).
 A vector file is the RC-400 controller fed a seeded sequence of its own frames (set-points in
 every program and speed source, multiplexed row reports with every State and Diag, speeds from
 the three sources including J1939 "not available", short frames and an undefined multiplexer
-value, long silences), one line per event, and every frame the Python build sent in answer::
+value, long silences, jobs in which one row's module reads 60 % or 130 % of the flow with good
+flags: the cross-row check's exclusions and readmissions), one line per event, and every frame
+the Python build sent in answer::
 
     params mode=physical ff_coeff=4.39
     boot                      the controller starts (on_start)
@@ -104,11 +106,15 @@ def events(rnd: random.Random) -> Iterator[can.Message | None]:
     target, sections = 23.0, 4
     speeds = [1.5, 1.6, 1.7]
     silent_until = 0
+    wrong_row, wrong_gain = 0, 1.0
     for step in range(STEPS):
         program, run, source = JOBS[step // JOB_STEPS % len(JOBS)]
         if step % JOB_STEPS == 0 and step:               # a new job every 4 s
             target = round(rnd.uniform(5.0, 45.0), 2)
             sections = rnd.choice((4, 4, 4, 1, 2, 0, 7))
+        if step % (3 * JOB_STEPS) == 0:                  # for three jobs, one module reads
+            wrong_row = rnd.choice((0, 1, 2, 4))         # wrong with good flags (the
+            wrong_gain = rnd.choice((0.6, 1.3))          # cross-row check)
         if step % 100 == 50:                             # the flow modules fall silent
             silent_until = step + rnd.choice((10, 30, 40))
         if step % 2 == 0:
@@ -121,9 +127,12 @@ def events(rnd: random.Random) -> Iterator[can.Message | None]:
             for row in range(1, 5):
                 if rnd.random() < 0.8:
                     flow = max(0.0, target * rnd.gauss(1.0, 0.06)
-                               * (4.0 if rnd.random() < 0.01 else 1.0))
+                               * (4.0 if rnd.random() < 0.01 else 1.0)
+                               * (wrong_gain if row == wrong_row else 1.0))
                     state = 0 if rnd.random() < 0.03 else 2 if rnd.random() < 0.02 else 1
                     diag = 1 if rnd.random() < 0.03 else 0
+                    if row == wrong_row:                 # its fault shows no flag
+                        state, diag = 1, 0
                     yield f.row(row, flow, state, diag)
         if rnd.random() < 0.02:                          # an undefined row, a short frame
             yield can.Message(arbitration_id=0x1B0, is_extended_id=False,
