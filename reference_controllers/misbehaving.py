@@ -18,6 +18,9 @@ break. Defects (``--defect KIND:ARG``):
 * ``no-plausibility`` — fertilizer: no plausibility check of the reported flow (the
   reference's ``Flow <= 3·Q + 5`` g/s): a row reading far above anything the meter can
   deliver is averaged in;
+* ``no-cross-row-check`` — fertilizer: no cross-row plausibility check (the reference's
+  :mod:`~reference_controllers.fertilizer.cross_row`): a row whose module freezes, steps or
+  drifts with good status bits is averaged in as long as it stays below ``3·Q + 5`` g/s;
 * ``speed-lowpass:T`` — fertilizer: the ground speed goes through a first-order low-pass of
   T seconds before the target flow is computed (meant to smooth the Hall node's jitter): the
   target lags every speed change by ~T;
@@ -298,6 +301,14 @@ class NoPlausibility(_Wrapper):
         rows.valid = valid
 
 
+class NoCrossRowCheck(_Wrapper):
+    """Every row that passes the single-row checks is averaged in, whatever the others read."""
+
+    def __init__(self, inner: Controller, period_s: float, _arg: None = None) -> None:
+        super().__init__(inner, period_s)
+        _flow_controller(inner, "no-cross-row-check").rows.cross_row = None
+
+
 class SpeedLowpass(_Wrapper):
     """The ground speeds through a first-order low-pass of ``tau_s`` before eq. 1."""
 
@@ -452,6 +463,7 @@ DEFECTS: dict[str, tuple[type[_Wrapper], Callable[[str], Any] | None]] = {
     "meters-through-stop": (MetersThroughStop, float),
     "ignores-sensor-flags": (IgnoresSensorFlags, None),
     "no-plausibility": (NoPlausibility, None),
+    "no-cross-row-check": (NoCrossRowCheck, None),
     "ignores-active-rows": (IgnoresActiveRows, None),
     "caps-target": (CapsTarget, float),
     "command-bias": (CommandBias, float),

@@ -17,7 +17,7 @@ spread 0.8 % SD (truncated at 2 SD), on rig.toml's flute charge (4 % per flute),
 scenario (steps, constant speeds, 4 and 8 km/h, headland, stop-go, rows switched off and on):
 
 * ``THRESHOLD_FRAC`` = 12 %: how far a healthy row stays from the median for 3 s on end, beyond
-  the 1 g/s floor: at most 6.2 % over 30 seeds x 11 scenarios with sliding reports, 5.7 % over
+  the 1 g/s floor: at most 6.7 % over 30 seeds x 13 scenarios with sliding reports, 5.7 % over
   12 seeds x 7 scenarios in [F]'s block mode. Most of it is the row's roller and module (a
   fixed offset; the windows' noise, ~3 % SD a report, averages out over 3 s); 30 seeds give
   120 rows (the largest ~2.6 SD), 300 dispersed samples 1,200 (~3.3 SD): ~8 %. 12 % leaves

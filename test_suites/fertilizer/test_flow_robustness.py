@@ -2,6 +2,9 @@
 
 * a flow module goes silent / reports garbage from 13 s of a 34 g/s bench run: the controller
   must carry on with the other rows (accuracy over the run, eq. 15);
+* a flow module reads wrong with good status bits from 8 s (frozen at mid-range, a 30 % gain
+  step, a drift of 2 %/s): the controller must tell it from the other rows and leave it out
+  (accuracy once a cross-row check can have acted, true flow at the meter);
 * the machine stops for 5 s in a field run: grams metered while standing still;
 * the target exceeds the meter's capacity, then returns into range: while it is out of reach
   the meter must deliver what the drive allows at full command (a controller that caps its
@@ -66,6 +69,38 @@ def test_sensor_faults(hil_run, hil_measure, fault: str) -> None:
                 run=result,
                 note=f"weighed {delivered:.1f} g of {target:.1f} g; the controller must "
                      f"{duty}")
+
+
+PLAUSIBILITY_TARGET_GPS = 34.0
+#: fault scenario -> (from when its flow is judged, s; what the fault is). The module goes wrong
+#: at 8 s. A cross-row check that never leaves out a healthy row (12 % + 1 g/s for 3 s,
+#: reference_controllers/fertilizer/cross_row.py) catches a step fault within its 3 s dwell;
+#: [F]'s 1.5 s response later the flow is back: 12.5 s. A drift of 2 %/s leaves the rows' band
+#: (15 % at 34 g/s) 7.5 s after it starts, then the dwell and the response: 20 s
+#: (hil/limits.py, _SENSOR_PLAUSIBILITY_LIMIT_PCT, says what the limit allows on top).
+PLAUSIBILITY_FAULTS = {
+    "stuck-mid": (12.5, "freezes at 60 % of the flow"),
+    "gain-step": (12.5, "reads 30 % high"),
+    "drift": (20.0, "drifts up 2 %/s"),
+}
+
+
+@pytest.mark.parametrize("fault", sorted(PLAUSIBILITY_FAULTS))
+def test_sensor_plausibility(hil_run, hil_measure, fault: str) -> None:
+    """Row 2's module reads wrong with good status bits: only the other rows can tell. The
+    true flow at the meter from the judged time on, against the target (eq. 15)."""
+    judged_from_s, what = PLAUSIBILITY_FAULTS[fault]
+    result = hil_run(f"fault-sensor-{fault}")
+    t, flow = row_mean(result, "flow_at_meter")
+    judged = t >= judged_from_s
+    dt = float(np.median(np.diff(t)))
+    metered = float(np.sum(flow[judged]) * dt)
+    target = PLAUSIBILITY_TARGET_GPS * float(np.count_nonzero(judged)) * dt
+    hil_measure("flow.fault.sensor_plausibility.accuracy", accuracy_theta(target, metered),
+                conditions={"row": 2, "fault": fault.replace("-", "_")}, run=result,
+                note=f"row 2's module {what} from 8 s with good status bits; {metered:.1f} g "
+                     f"of {target:.1f} g per row metered from {judged_from_s:g} s: the "
+                     f"controller must leave out a row that disagrees with the others")
 
 
 def test_speed_loss(hil_run, hil_measure) -> None:
