@@ -57,6 +57,7 @@ from hil.qualification.verdict import session_verdict
 from hil.record.atomic import write_json_atomic
 from hil.record.recorder import versions
 from hil.rig import Rig, RunOptions, RunResult, load_rig, run_scenario
+from hil.rig.runner import CommandIdsError
 from hil.rig.scenario import Scenario
 from hil.validation import CLI_RANGES
 
@@ -360,7 +361,7 @@ class QualificationSession:
                 **wiring,
                 extra_meta={"dut_identity": profile.identity(), "dut_build": build,
                             "test": nodeid}))
-        except PhysicalDutSetupError as exc:
+        except (PhysicalDutSetupError, CommandIdsError) as exc:
             # not a verdict on the ECU: the qualification stops as a setup error (exit 2)
             self.setup_error = str(exc)
             pytest.exit(f"setup error: {exc}", returncode=2)

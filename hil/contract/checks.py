@@ -496,19 +496,54 @@ def check_profile_wiring(profile: Any, contract: Contract, binding: Binding, *,
     waits = codec_ids or waits
     given = set(profile.wiring.command_ids)
     if given and given != waits:
-        out.append(Problem(src, "wiring.command_ids",
-                           f"[{', '.join(f'0x{i:X}' for i in sorted(given))}] is not what the "
-                           f"rig waits for after each SYNC: "
-                           f"[{', '.join(f'0x{i:X}' for i in sorted(waits))}] (the frames "
-                           f"of {', '.join(sorted(contract.command_quantities))})",
-                           f"command_ids = [{', '.join(f'0x{i:X}' for i in sorted(waits))}] "
-                           "or remove the key"))
+        out += _command_ids(src, contract, given, waits)
     if contract.dut_node_id and profile.wiring.node_id != contract.dut_node_id:
         out.append(Problem(src, "wiring.node_id", f"the {contract.rig} rig's wiring puts the "
                            f"DUT at node {contract.dut_node_id:#x}, the profile at "
                            f"{profile.wiring.node_id:#x}",
                            f"node_id = {contract.dut_node_id:#x} (or [rig] wiring's)"))
     return out
+
+
+#: CAN ids CiA 301 reserves (NMT, SYNC, EMCY, TIME, SDO, LSS, NMT error control): no PDO
+_RESERVED_COB_IDS = (range(0x000, 0x101), range(0x101, 0x181), range(0x581, 0x600),
+                     range(0x601, 0x680), range(0x6E0, 0x700), range(0x701, 0x800))
+
+
+def _hex_list(ids: set[int]) -> str:
+    return ", ".join(f"0x{i:X}" for i in sorted(ids))
+
+
+def _command_ids(src: str, contract: Contract, given: set[int],
+                 waits: set[int]) -> list[Problem]:
+    """``wiring.command_ids`` other than the frames the rig waits for by default.
+
+    Where the DUT is the NMT master of the rig's CANopen nodes it configures their RPDOs, and
+    the rig's step follows (the depth rig's drive): it may list where it puts its commands,
+    any id an RPDO can take (an 11-bit id CiA 301 leaves to PDOs, none of the rig's own
+    frames but its nodes' RPDOs); the run checks them against what it configured. Elsewhere the
+    frames are the binding's and the list must be theirs.
+    """
+    what = (f"the frames of {', '.join(sorted(contract.command_quantities))}"
+            if contract.command_quantities else "the rig's command frames")
+    fix = f"command_ids = [{_hex_list(waits)}] or remove the key"
+    if not contract.dut_is_nmt_master:
+        return [Problem(src, "wiring.command_ids",
+                        f"[{_hex_list(given)}] is not what the rig waits for after each "
+                        f"SYNC: [{_hex_list(waits)}] ({what})", fix)]
+    own = {can_id: name for name, can_id in contract.node_ids.items() if "RPDO" not in name}
+    bad = sorted(i for i in given if i > 0x7FF or i in own
+                 or any(i in r for r in _RESERVED_COB_IDS))
+    if bad:
+        why = "; ".join(f"0x{i:X} is the rig's {own[i]}" if i in own else
+                        f"0x{i:X} is no 11-bit id CiA 301 leaves to PDOs" for i in bad)
+        return [Problem(src, "wiring.command_ids", f"no RPDO of the rig's CANopen nodes can "
+                        f"be configured at {_hex_list(set(bad))} ({why})", fix)]
+    return [Problem(src, "wiring.command_ids",
+                    f"[{_hex_list(given)}] are not the rig's default command frames "
+                    f"([{_hex_list(waits)}], {what}): the DUT must configure its RPDOs there; "
+                    "each run checks it once the DUT commands, and a listed id that carries "
+                    "no command is a setup error", note=True)]
 
 
 def _bound_command_ids(contract: Contract, binding: Binding) -> set[int]:

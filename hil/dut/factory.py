@@ -112,8 +112,9 @@ def profile_run_options(profile: DutProfile, *, rig_from: DutProfile | None = No
     Returns
     -------
     dict
-        :class:`hil.rig.RunOptions` fields: the rig's config overrides and their source, and
-        the flood limit (``timing.max_frames_per_period`` of ``profile``).
+        :class:`hil.rig.RunOptions` fields: the rig's config overrides and their source, the
+        flood limit (``timing.max_frames_per_period`` of ``profile``) and its
+        ``wiring.command_ids`` (checked during the run against what the DUT configures).
     """
     rig = rig_from or profile
     config = dict(rig.rig_config)
@@ -124,4 +125,6 @@ def profile_run_options(profile: DutProfile, *, rig_from: DutProfile | None = No
         if "wiring" in profile.rig_config:
             config["wiring"] = profile.rig_config["wiring"]
     return {"rig_config": config, "rig_config_source": str(rig.path or ""),
-            "max_dut_frames_per_period": profile.timing.max_frames_per_period}
+            "max_dut_frames_per_period": profile.timing.max_frames_per_period,
+            "command_ids": frozenset(profile.wiring.command_ids),
+            "command_ids_source": str(profile.path or "")}

@@ -87,11 +87,26 @@ class RunOptions:
     extra_meta: dict[str, Any] = field(default_factory=dict)
     #: False: no bus log files (a campaign's measurements-only sample)
     record_bus: bool = True
+    #: the DUT's command frames as its profile lists them (``wiring.command_ids``; empty: not
+    #: listed): checked against the frames the rig waits for once the DUT commands
+    #: (:class:`CommandIdsError`), so a master that configures its slaves' RPDOs may list
+    #: where it puts them
+    command_ids: frozenset[int] = frozenset()
+    #: where ``command_ids`` comes from (the profile), named in the error
+    command_ids_source: str = ""
     #: False: the traces and truth arrays stay in memory (:meth:`RunResult.traces`,
     #: :meth:`RunResult.truth_arrays`) and no ``traces.npz``/``truth.npz`` is written (a
     #: campaign's measurements-only sample: compressing and reading them back was ~1.5 s of
     #: CPU per fertilizer sample)
     save_traces: bool = True
+
+
+class CommandIdsError(ConfigError):
+    """A profile's ``wiring.command_ids`` lists a frame the DUT does not send as a command.
+
+    That is, not one the rig waits for after each SYNC as the DUT has configured the rig's
+    nodes (a CANopen master that moved its drive's RPDOs elsewhere).
+    """
 
 
 def bus_load_refusal(bus: str, clock: str) -> str | None:
@@ -238,6 +253,9 @@ class _Loop:
         #: time a DUT silent for longer than ``silence_limit_s`` has stopped answering (in
         #: lockstep the SYNC barrier's timeout says it)
         self.command_ids = frozenset(rig.command_ids())
+        #: the profile's list of them, and whether a command frame came since the last check
+        self.declared_ids = options.command_ids
+        self._commanded = False
         #: None until the DUT's first command frame: only a DUT that answered can stop
         #: answering (a DUT silent by design, a CANopen master's test, say, is left alone)
         self.last_command_s: float | None = None
@@ -282,6 +300,7 @@ class _Loop:
         self._log(msg, rx=True)
         if msg.arbitration_id in self.command_ids:
             self.last_command_s = self.clock.time_s
+            self._commanded = True
         if msg.arbitration_id in self.foreign_ids and msg.is_extended_id:
             return  # another node's traffic (bus load): logged, neither rig's nor DUT's
         if self._flood_limit is not None:
@@ -304,16 +323,32 @@ class _Loop:
         """Wait on the rig's command frames as they are now, checked once per control period.
 
         A CANopen master that remaps its drive's RPDOs at boot moves them
-        (:meth:`Rig.command_ids` follows the configuration).
+        (:meth:`Rig.command_ids` follows the configuration). Once the DUT commands (a command
+        frame came in the period), its configuration is in force: the profile's
+        ``wiring.command_ids``, if it lists them, must be among these frames.
+
+        Raises
+        ------
+        CommandIdsError
+            A listed id that is not a command frame as the DUT configured the rig's nodes.
         """
         ids = frozenset(self.rig.command_ids())
-        if ids == self.command_ids:
-            return
-        self.rig.ctx.note(self.clock.time_s, "command-ids",
-                          "the step's command frames are now "
-                          + ", ".join(f"0x{i:X}" for i in sorted(ids)))
-        self.command_ids = ids
-        self.barrier.await_ids = ids
+        if ids != self.command_ids:
+            self.rig.ctx.note(self.clock.time_s, "command-ids",
+                              "the step's command frames are now "
+                              + ", ".join(f"0x{i:X}" for i in sorted(ids)))
+            self.command_ids = ids
+            self.barrier.await_ids = ids
+        if self._commanded:
+            self._commanded = False
+            stray = self.declared_ids - ids
+            if stray:
+                raise CommandIdsError(
+                    f"{_ids(stray)} is not a frame the DUT sends as a command at "
+                    f"t = {self.clock.time_s:.2f} s: the rig waits after each SYNC for "
+                    f"{_ids(ids)}, as the DUT has configured its nodes (fix: command_ids = "
+                    f"[{_ids(ids)}] or remove the key)",
+                    path=self.options.command_ids_source or None, key="wiring.command_ids")
 
     def _requery(self, i: int, device: Device, t: float) -> None:
         """Ask a device that took a frame when it is due now; keep the earlier tick."""
@@ -505,6 +540,10 @@ class _Loop:
             self.last_command_s = self.clock.time_s    # a fresh DUT: its silence starts now
             self.rig.ctx.note(t, "dut-restart", f"the DUT was restarted (before: "
                               f"{before.get('exit', before.get('kind', '?'))})")
+
+
+def _ids(ids: frozenset[int]) -> str:
+    return ", ".join(f"0x{i:X}" for i in sorted(ids))
 
 
 def _record_bus_stats(rec: Recorder, softbus: Any) -> None:
