@@ -26,10 +26,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from hil.gate.record import load_record
 from hil.record import load_traces
 from hil.rig.runner import RunOptions, run_scenario
 from plant_emulators.fertilizer.rig import FertilizerRig
+from tests.helpers.same_measurements import qualified_measurements
 
 ROOT = Path(__file__).resolve().parents[2]
 HIL = str(Path(sys.executable).with_name("hil"))
@@ -144,25 +144,14 @@ def test_the_profile_checks() -> None:
     assert done.returncode == 0, done.stdout + done.stderr
 
 
-def _control_measurements(record: Path) -> dict[str, float | None]:
-    """The record's ``flow.*`` values by the gate's key (name and conditions)."""
-    return {key: m.value for key, m in load_record(record).by_key().items()
-            if key.startswith("flow.")}
-
-
 @pytest.mark.slow
 def test_the_rc400_firmware_qualifies_with_the_reference_measurements(tmp_path: Path) -> None:
     """``hil qualify`` of both firmware profiles, fast and robustness suites, lockstep over the
     software bus, seed 0: every control measurement is the same number (~90 s; 32 of 32 when
     written, the accuracy gain against the open-loop baseline included)."""
-    records = {}
-    for name, profile in (("ref", REFERENCE), ("rc400", PROFILE)):
-        out = tmp_path / name
-        done = subprocess.run([HIL, "qualify", str(profile), "--bus", "softbus",
-                               "--suite", "fast,robustness", "--out", str(out), "--quiet"],
-                              cwd=ROOT, capture_output=True, text=True)
-        assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
-        records[name] = _control_measurements(out / "record.json")
+    records = {name: qualified_measurements(HIL, profile, tmp_path / name, bus="softbus",
+                                            prefix="flow.", cwd=ROOT)
+               for name, profile in (("ref", REFERENCE), ("rc400", PROFILE))}
     assert len(records["ref"]) > 30
-    assert "flow.silence.recovery_time" in records["ref"]
+    assert ("flow.silence.recovery_time", "{}") in records["ref"]
     assert records["rc400"] == records["ref"]

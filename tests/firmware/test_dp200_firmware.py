@@ -35,7 +35,7 @@ from hil.rig.runner import RunOptions, run_scenario
 from hil.rig.scenario import Event
 from hil.softbus import SoftwareBus
 from plant_emulators.sowing_depth.rig import SowingDepthRig
-from tests.reference_controllers.test_depth_byo import _measurements
+from tests.helpers.same_measurements import qualified_measurements
 
 ROOT = Path(__file__).resolve().parents[2]
 HIL = str(Path(sys.executable).with_name("hil"))
@@ -225,14 +225,10 @@ def test_the_dp200_firmware_qualifies_with_the_reference_measurements(tmp_path: 
     reference C firmware gave 0.031 mm on ``depth.fault.speed_loss.rod_travel`` against
     7.6e-10 mm until apps/depth_adapter.c read the GNSS speed at the start of a step, as the
     Python builds and this one do; it now gives the same.)"""
-    records = {}
-    for name, profile, bus in (("ref", REFERENCE, "inline"), ("dp200", PROFILE, "softbus")):
-        out = tmp_path / name
-        done = subprocess.run([HIL, "qualify", str(profile), "--bus", bus,
-                               "--suite", "fast,robustness", "--out", str(out), "--quiet"],
-                              cwd=ROOT, capture_output=True, text=True)
-        assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
-        records[name] = _measurements(out / "record.json")
+    records = {name: qualified_measurements(HIL, profile, tmp_path / name, bus=bus,
+                                            prefix="depth.", cwd=ROOT)
+               for name, profile, bus in (("ref", REFERENCE, "inline"),
+                                          ("dp200", PROFILE, "softbus"))}
     assert len(records["ref"]) > 20
     assert ("depth.fault.speed_loss.rod_travel", "{}") in records["ref"]
     assert records["dp200"] == records["ref"]

@@ -16,7 +16,6 @@ event-driven, configured by SDO at boot.
 from __future__ import annotations
 
 import dataclasses
-import json
 import re
 import shutil
 import subprocess
@@ -42,6 +41,7 @@ from reference_controllers.sowing_depth.dbc_adapter import (
     dp200,
 )
 from reference_controllers.sowing_depth.drive_config import PdoConfig, check_against_database
+from tests.helpers.same_measurements import qualified_measurements
 
 REPO = Path(__file__).resolve().parents[2]
 HIL = str(Path(sys.executable).with_name("hil"))
@@ -254,26 +254,12 @@ def test_the_readme_quotes_the_check() -> None:
     assert said == quoted
 
 
-def _measurements(record: Path) -> dict[tuple[str, str], float]:
-    out = {}
-    for m in json.loads(record.read_text(encoding="utf-8"))["measurements"]:
-        if m["name"].startswith("depth."):
-            conditions = {k: v for k, v in (m.get("conditions") or {}).items() if k != "run"}
-            out[(m["name"], json.dumps(conditions, sort_keys=True))] = m["value"]
-    return out
-
-
 @pytest.mark.slow
 def test_the_dp200_qualifies_with_the_reference_measurements(tmp_path: Path) -> None:
     """``hil qualify`` of both profiles, fast and robustness suites, lockstep on the inline
     bus, seed 0: every control measurement is the same number."""
-    records = {}
-    for name, profile in (("ref", REFERENCE), ("dp200", PROFILE)):
-        out = tmp_path / name
-        done = subprocess.run([HIL, "qualify", str(profile), "--bus", "inline",
-                               "--suite", "fast,robustness", "--out", str(out), "--quiet"],
-                              cwd=REPO, capture_output=True, text=True)
-        assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
-        records[name] = _measurements(out / "record.json")
+    records = {name: qualified_measurements(HIL, profile, tmp_path / name, bus="inline",
+                                            prefix="depth.", cwd=REPO)
+               for name, profile in (("ref", REFERENCE), ("dp200", PROFILE))}
     assert len(records["ref"]) > 20
     assert records["dp200"] == records["ref"]

@@ -12,7 +12,6 @@ resolutions (0.036 kg/h = 0.01 g/s, 0.0036 km/h = 0.001 m/s), so nothing is lost
 from __future__ import annotations
 
 import dataclasses
-import json
 import shutil
 import subprocess
 import sys
@@ -38,6 +37,7 @@ from reference_controllers.fertilizer.dbc_adapter import (
 )
 from reference_controllers.inprocess import fertilizer_piecewise_pid
 from reference_controllers.registry import make_controller
+from tests.helpers.same_measurements import qualified_measurements
 
 REPO = Path(__file__).resolve().parents[2]
 HIL = str(Path(sys.executable).with_name("hil"))
@@ -164,15 +164,6 @@ def test_the_generated_binding_is_what_bind_writes(tmp_path: Path) -> None:
     assert out.read_text(encoding="utf-8") == committed.read_text(encoding="utf-8")
 
 
-def _measurements(record: Path) -> dict[tuple[str, str], float]:
-    out = {}
-    for m in json.loads(record.read_text(encoding="utf-8"))["measurements"]:
-        if m["name"].startswith("flow."):
-            conditions = {k: v for k, v in (m.get("conditions") or {}).items() if k != "run"}
-            out[(m["name"], json.dumps(conditions, sort_keys=True))] = m["value"]
-    return out
-
-
 @pytest.mark.slow
 def test_the_rc400_qualifies_with_the_reference_measurements(tmp_path: Path) -> None:
     """``hil qualify`` of both profiles, fast and robustness suites, lockstep on the inline
@@ -183,14 +174,9 @@ def test_the_rc400_qualifies_with_the_reference_measurements(tmp_path: Path) -> 
     (``hil.dut.factory.profile_run_options(rig_from=...)``); before that fix it ran on the DUT's
     binding, never heard its set-points, delivered 0 g and the gain read 99.9 points, not 4.0.
     """
-    records = {}
-    for name, profile in (("ref", REFERENCE), ("rc400", PROFILE)):
-        out = tmp_path / name
-        done = subprocess.run([HIL, "qualify", str(profile), "--bus", "inline",
-                               "--suite", "fast,robustness", "--out", str(out), "--quiet"],
-                              cwd=REPO, capture_output=True, text=True)
-        assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
-        records[name] = _measurements(out / "record.json")
+    records = {name: qualified_measurements(HIL, profile, tmp_path / name, bus="inline",
+                                            prefix="flow.", cwd=REPO)
+               for name, profile in (("ref", REFERENCE), ("rc400", PROFILE))}
     assert len(records["ref"]) > 30
     assert ("flow.comparison.accuracy_gain", "{}") in records["ref"]
     assert records["rc400"] == records["ref"]
