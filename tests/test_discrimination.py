@@ -178,21 +178,35 @@ def test_must_fail_profile_fails_on_its_defect(tmp_path: Path, name: str) -> Non
 REFERENCE_BUILDS = ("fertilizer-piecewise-pid-daemon", "fertilizer-piecewise-pid-firmware")
 
 
-@pytest.mark.slow
-def test_references_pass_switched_rows_identically(tmp_path: Path) -> None:
-    """The reference meters each switched row within [F]'s field accuracy, and its two
-    builds lay the same grams (the C firmware must stay identical to the Python)."""
+def _reference_builds_measure(tmp_path: Path, selection: str, measurement: str,
+                               count: int) -> None:
+    """Both reference builds pass the tests ``selection`` picks, and record the same values
+    of ``measurement`` (``count`` conditions): the C firmware is the Python, bit for bit."""
     values = {}
     for build in REFERENCE_BUILDS:
         bus = "inline" if build.endswith("-daemon") else "softbus"
         proc, record = _qualify(ROOT / "dut_profiles" / f"{build}.toml", tmp_path / build,
-                                "switched_rows", bus=bus)
+                                selection, bus=bus)
         assert proc.returncode == 0 and record["verdict"] == "pass", proc.stdout + proc.stderr
         values[build] = sorted((str(m["conditions"]), m["value"])
-                               for m in record["measurements"]
-                               if m["name"] == "flow.rows.applied_accuracy")
-        assert len(values[build]) == 8, values[build]
+                               for m in record["measurements"] if m["name"] == measurement)
+        assert len(values[build]) == count, values[build]
     assert values[REFERENCE_BUILDS[0]] == values[REFERENCE_BUILDS[1]]
+
+
+@pytest.mark.slow
+def test_references_pass_switched_rows_identically(tmp_path: Path) -> None:
+    """The reference meters each switched row within [F]'s field accuracy, and its two
+    builds lay the same grams (the C firmware must stay identical to the Python)."""
+    _reference_builds_measure(tmp_path, "switched_rows", "flow.rows.applied_accuracy", 8)
+
+
+@pytest.mark.slow
+def test_references_pass_sensor_plausibility_identically(tmp_path: Path) -> None:
+    """The reference leaves out a module that reads wrong with good flags (the cross-row
+    check), and its Python and C builds meter the same grams doing so."""
+    _reference_builds_measure(tmp_path, "sensor_plausibility",
+                              "flow.fault.sensor_plausibility.accuracy", 3)
 
 
 @pytest.mark.slow
@@ -207,20 +221,3 @@ def test_loaded_bus_suite_fails_a_controller_that_ignores_the_setpoint(tmp_path:
         pytest.skip("invalid bench (real-time timing under load): " + proc.stdout[-300:])
     got = [m for m in record["measurements"] if m["name"] == "flow.busload.accuracy"]
     assert [m["outcome"] for m in got] == ["fail"], got
-
-
-@pytest.mark.slow
-def test_references_pass_sensor_plausibility_identically(tmp_path: Path) -> None:
-    """The reference leaves out a module that reads wrong with good flags (the cross-row
-    check), and its Python and C builds meter the same grams doing so."""
-    values = {}
-    for build in REFERENCE_BUILDS:
-        bus = "inline" if build.endswith("-daemon") else "softbus"
-        proc, record = _qualify(ROOT / "dut_profiles" / f"{build}.toml", tmp_path / build,
-                                "sensor_plausibility", bus=bus)
-        assert proc.returncode == 0 and record["verdict"] == "pass", proc.stdout + proc.stderr
-        values[build] = sorted((str(m["conditions"]), m["value"])
-                               for m in record["measurements"]
-                               if m["name"] == "flow.fault.sensor_plausibility.accuracy")
-        assert len(values[build]) == 3, values[build]
-    assert values[REFERENCE_BUILDS[0]] == values[REFERENCE_BUILDS[1]]
