@@ -85,3 +85,13 @@ def test_the_reference_lists_the_eds_defaults_and_runs(tmp_path: Path) -> None:
     """A master that keeps the EDS's PDOs: both of its listed ids stay command frames."""
     result = _run(tmp_path, lambda: sowing_depth_fuzzy_pid(**PARAMS), {}, {0x202, 0x302})
     assert result.record["error"] is None, result.record["error"]
+
+
+def test_hil_run_says_it_in_one_line_exit_2(tmp_path: Path) -> None:
+    profile = _profile(tmp_path, "[0x202, 0x302]")
+    done = subprocess.run([HIL, "run", "--rig", "sowing_depth", "--dut", str(profile),
+                           "--scenario", "depth-step", "--bus", "inline", "--out",
+                           str(tmp_path / "run")], capture_output=True, text=True, cwd=REPO)
+    assert done.returncode == 2, done.stderr
+    assert f"hil: error: {profile}: [wiring.command_ids] 0x202 is not a frame" in done.stderr
+    assert "Traceback" not in done.stderr
