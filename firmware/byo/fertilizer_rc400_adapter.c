@@ -273,11 +273,17 @@ static void measure(rc400_adapter_t *a, double target, rc400_step_info_t *info)
     bool passed[RC400_ROWS];
     bool excluded[RC400_ROWS];
     bool fresh_row[RC400_ROWS];
+    /* rows 1..Sections meter once a command has come (the others' clutches are out and their
+     * modules read 0), all before one: the Python build's active_rows() */
+    int active = RC400_ROWS;
+    if (a->has_setpoint) {
+        active = a->setpoint.sections > 1u ? (int)a->setpoint.sections : 1;
+    }
     for (int i = 0; i < RC400_ROWS; i++) {
         rc400_row_t *r = &a->rows[i];
         flows[i] = r->flow_gps;
         fresh_row[i] = r->fresh;
-        passed[i] = r->seen && r->measuring && !r->overrange &&
+        passed[i] = i < active && r->seen && r->measuring && !r->overrange &&
                     (double)(a->steps - r->at_step) <= stale_steps + STALE_SLACK_STEPS &&
                     r->flow_gps <= 3.0 * target + 5.0;
         r->fresh = false;

@@ -269,6 +269,14 @@ class DbcFlowController(Controller):
             return 0.1 * rate * width * speed / rows
         return float(self._value(self.map.target_flow)) * self._units["target_flow"]
 
+    def active_rows(self) -> int | None:
+        """The rows that meter: 1..Sections once a command has come (the others' clutches
+        are out and their modules read a stopped roller's 0 g/s), all before one, as the
+        reference counts rows 1..ActiveRows."""
+        if not self.setpoint:
+            return None
+        return max(1, int(self._value(self.map.sections)))
+
     def on_tick(self) -> list[can.Message]:
         """One free-running control step (a daemon's timer, not SYNC)."""
         return self.step()
@@ -281,7 +289,7 @@ class DbcFlowController(Controller):
             if self.closed_loop is not None:
                 self.closed_loop.reset()
             self.active_mode = mode
-        m = self.rows.measure(target, self.steps)
+        m = self.rows.measure(target, self.steps, self.active_rows())
         law = self.open_loop if (mode == "constant" or self.closed_loop is None) \
             else self.closed_loop
         self.volts, self.segment = law.step(target, m.measured_gps, m.has_measurement,
