@@ -59,7 +59,14 @@ _SYNONYMS = {
     "lost": {"lost", "loss", "no", "missing", "invalid"},
     "position": {"position", "pos", "travel"},
     "fault": {"fault", "error", "err", "alarm"},
+    "inclinometer": {"inclinometer", "tilt", "incl", "inc", "angle"},
 }
+
+#: words a signal name may carry without saying which quantity it is: units, and a few
+#: generic ones (``GroundBasedMachineSpeed``)
+_NEUTRAL = {"kg", "g", "h", "ha", "mm", "cm", "um", "m", "mv", "v", "kmh", "kph", "ms", "s",
+            "sec", "min", "pct", "rpm", "deg", "rad", "hz", "a", "ma", "per", "machine", "value",
+            "raw", "signal", "data", "info"}
 
 #: a word of a quantity that the unit of a signal says by itself (a signal in kg/h is a flow)
 _DIMENSION_WORDS = {
@@ -185,11 +192,13 @@ def dut_node(db: BusDatabase) -> str:
 
 def candidates(q: Quantity, db: BusDatabase, rows: int, dut: str = "",
                fixed_id: int | None = None, fixed_why: str = "",
-               others: Mapping[str, str] | None = None) -> list[Candidate]:
+               others: Mapping[str, str] | None = None,
+               peers: Mapping[str, str] | None = None) -> list[Candidate]:
     """Signals that may carry ``q``, best first (``dut``: the DUT's node, for direction;
     ``fixed_id``: the frame id the rig's wiring takes ``q`` at, if it fixes one, and
     ``fixed_why`` why; ``others``: the words of the rig's other quantities, word → one of
-    them, so that a name that also says another quantity is marked)."""
+    them, so that a name that also says another quantity is marked; ``peers``: the same for
+    the quantities of ``q``'s direction)."""
     names = {m.name for m in db.db.messages}
     want = _words(q.name) - {"dut"}
     want_syn = _expand(want)
@@ -281,10 +290,21 @@ def candidates(q: Quantity, db: BusDatabase, rows: int, dut: str = "",
                         notes.append("confirm the multiplexer value of each row, row 1 first")
             elif q.per_row and not template:
                 score -= 2.0                      # one signal for every row: unlikely
-            alien = sorted(w for w in own - want_syn if w in (others or {}))
+            # a synonym too, when a quantity of the same direction has it as its own word:
+            # GroundSpeed for wheel_speed (ground_based_speed), not WireState for a status
+            alien = sorted(w for w in own if w in (others or {}) and _stem(w) not in
+                           _stems(want) and (w not in want_syn or w in (peers or {})))
             if alien:
                 notes.append(f"{sig.name} also says " + ", ".join(
                     f"{w!r} (as {(others or {})[w]} does)" for w in alien))
+            said = want_syn | about | message_words | message_comment | _NEUTRAL \
+                | _words(sig.comment or "") \
+                | (_DIMENSION_WORDS.get(dimension(unit), set()) if same_dimension else set())
+            strange = sorted(w for w in own - set(alien)
+                             if not _explained(w, said, _initials(m.name)))
+            if strange:
+                notes.append(f"{sig.name} also says {', '.join(repr(w) for w in strange)}, "
+                             f"which nothing of {q.name} does")
             name = sig_template or sig.name
             covered = own | message_words | comment | message_comment
             if same_dimension:
@@ -302,6 +322,28 @@ def _says(word: str, words: set[str]) -> bool:
     """Whether ``words`` say ``word`` (itself, a synonym, or the same stem)."""
     return bool(({word} | _SYNONYMS.get(word, set())) & words) \
         or _stem(word) in _stems(words)
+
+
+def _explained(word: str, said: set[str], initials: str) -> bool:
+    """Whether ``said`` accounts for ``word``: the word, its stem, a word it abbreviates
+    (``inc`` for ``inclinometer``, ``src`` for ``source``), or the message's initials
+    (``DC_State`` in ``DepthControllerStatus``). One letter says nothing."""
+    return len(word) < 2 or word in said or _stem(word) in _stems(said) \
+        or initials.startswith(word) or any(_abbreviates(word, w) for w in said)
+
+
+def _abbreviates(short: str, word: str) -> bool:
+    """``short`` is ``word``'s first letter and some of its others, in order."""
+    if not word.startswith(short[:1]):
+        return False
+    rest = iter(word[1:])
+    return all(c in rest for c in short[1:])
+
+
+def _initials(name: str) -> str:
+    """``dcs`` for ``DepthControllerStatus``, ``dps`` for ``DP_SensorHub``."""
+    parts = re.findall(r"[A-Z]+(?=[A-Z][a-z])|[A-Z]?[a-z]+|[A-Z]+", name)
+    return "".join(p[0] for p in parts).lower()
 
 
 def _is_nested(message: Any, mux: str) -> bool:
@@ -349,15 +391,24 @@ def _assign(found: Mapping[str, list[Candidate]]) -> dict[str, Candidate]:
     return out
 
 
+def _clear(c: Candidate, found: list[Candidate]) -> bool:
+    """A first choice with nothing to mark: the best, alone, every word said, no note."""
+    return c.key == found[0].key and not c.uncovered and not c.notes \
+        and not any(o.score >= c.score - MARGIN for o in found[1:])
+
+
 def _with_families(contract: Contract, found: dict[str, list[Candidate]],
                    first: Mapping[str, Candidate]) -> dict[str, list[Candidate]]:
     """A status or counter in the frame (and multiplexer value) of the quantity it belongs to
-    scores higher; in another multiplexer value of that message, lower."""
+    scores higher; in another multiplexer value of that message, lower. Only where that
+    quantity's own signal is clear (a home that is itself a guess decides nothing)."""
     names = [q.name for q in contract.quantities]
     out = dict(found)
     for q in contract.quantities:
         base = _family_base(q, names)
         home = first.get(base) if base else None
+        if home is not None and not _clear(home, found[base]):
+            home = None
         if home is None or not found.get(q.name):
             continue
         # a multiplexer value that carries only this family is one sensor's channel: what is
@@ -382,14 +433,19 @@ def propose(database: Path | BusDatabase, contract: Contract) -> tuple[str, list
     """The DUT's node and a proposal for each of ``contract``'s quantities, in their order."""
     db = database if isinstance(database, BusDatabase) else BusDatabase(database)
     dut = dut_node(db)
-    words: dict[str, str] = {}
+    words: dict[str, list[Quantity]] = {}
     for q in contract.quantities:
         for w in sorted(_words(q.name) - {"dut"}):
-            words.setdefault(w, q.name)
+            words.setdefault(w, []).append(q)
+
+    def others(q: Quantity, same_direction: bool) -> dict[str, str]:
+        mine = _words(q.name)
+        return {w: qs[0].name for w, qs in words.items() if w not in mine and (
+            not same_direction or any(o.direction == q.direction for o in qs))}
+
     found = {q.name: candidates(q, db, contract.rows, dut, contract.fixed_ids.get(q.name),
                                 contract.fixed_id_reasons.get(q.name, ""),
-                                {w: n for w, n in words.items()
-                                 if w not in _words(q.name)})
+                                others(q, False), others(q, True))
              for q in contract.quantities}
     found = _with_families(contract, found, _assign(found))
     chosen = _assign(found)

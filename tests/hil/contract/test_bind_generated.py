@@ -4,13 +4,12 @@ decide, it marks.
 
 Each database is built in code (cantools) from a rig's quantities: the true carriers are named
 from the quantity's words (sometimes a synonym, sometimes a word left out), in the quantity's
-unit or another of its dimension, in plain or multiplexed messages (one multiplexer value per
-sensor, the sensor's status and counter beside it), per-row quantities as one message per row,
-one multiplexed message with a signal per row, or one signal under a multiplexer value per
-row. Look-alikes are added around them: the same name in another dimension, in the other
-direction, too narrow for the quantity, a second copy elsewhere (nobody can tell the two
-apart: bind must mark it), and rolling counters and statuses of two sensors in one
-multiplexed frame.
+unit or another of its dimension, in plain or multiplexed messages, per-row quantities as one
+message per row, one multiplexed message with a signal per row, or one signal under a
+multiplexer value per row. Look-alikes are added around them: the same name in another
+dimension, in the other direction, too narrow for the quantity, with a word of something else
+(``AuxEnabled``), a second copy elsewhere (nobody can tell the two apart: bind must mark it),
+and another sensor's rolling counter and status under another multiplexer value of a frame.
 """
 
 from __future__ import annotations
@@ -177,7 +176,7 @@ def databases(draw: st.DrawFn, rig: str) -> Built:
         if q.per_row:
             continue
         kind = draw(st.sampled_from(["none", "dimension", "direction", "narrow", "copy",
-                                     "sibling"]))
+                                     "sibling", "prefixed"]))
         name = _name(q, draw)
         other = "from_dut" if q.direction == "to_dut" else "to_dut"
         if kind == "dimension" and q.kind == "number":
@@ -191,6 +190,11 @@ def databases(draw: st.DrawFn, rig: str) -> Built:
             # the same signal twice: nothing tells which one the controller reads
             copy = Planned(**{**placed[q.name].__dict__, "quantity": ""})
             muxed[q.direction].setdefault(3, []).append(copy)
+        elif kind == "prefixed":
+            # the quantity's name with a word of something else (``AuxEnabled``)
+            alike = _true_signal(q, draw(st.sampled_from(OTHER_WORDS)) + name, draw)
+            alike.quantity = ""
+            plain[q.direction].append(alike)
         elif kind == "sibling":
             # another sensor's rolling counter and status, under another multiplexer value
             whose = draw(st.sampled_from(OTHER_WORDS + _other_sensors(contract)))
