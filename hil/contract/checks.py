@@ -540,10 +540,10 @@ def _command_ids(src: str, contract: Contract, given: set[int],
         return [Problem(src, "wiring.command_ids", f"no RPDO of the rig's CANopen nodes can "
                         f"be configured at {_hex_list(set(bad))} ({why})", fix)]
     return [Problem(src, "wiring.command_ids",
-                    f"[{_hex_list(given)}] are not the rig's default command frames "
-                    f"([{_hex_list(waits)}], {what}): the DUT must configure its RPDOs there; "
-                    "each run checks it once the DUT commands, and a listed id that carries "
-                    "no command is a setup error", note=True)]
+                    f"[{_hex_list(given)}] differs from the frames the rig waits for by "
+                    f"default ([{_hex_list(waits)}], {what}): the DUT must configure the RPDOs "
+                    "that carry its commands there; each run checks it once the DUT commands, "
+                    "and a listed id that carries no command stops the run", note=True)]
 
 
 def _bound_command_ids(contract: Contract, binding: Binding) -> set[int]:
