@@ -129,11 +129,13 @@ def test_the_vectors_are_what_the_python_build_writes(tmp_path: Path) -> None:
 
 
 def test_the_bus_layer_is_generated_from_the_database(tmp_path: Path) -> None:
-    """The committed C bus layer is what cantools generates from the RC-400's database today:
-    the C build speaks the layout the rig is bound to, not a stale copy of it."""
+    """The committed C bus layers are what cantools generates from the RC-400's and the
+    DP-200's databases today (``generate.sh`` writes both): the C builds speak the layouts the
+    rig is bound to, not stale copies of them."""
     subprocess.run(["sh", str(ROOT / "firmware" / "byo" / "generate.sh"), str(tmp_path)],
                    check=True, capture_output=True, env={**os.environ, "PYTHON": sys.executable})
-    for name in ("ratemaster_rc400.c", "ratemaster_rc400.h"):
+    for name in ("ratemaster_rc400.c", "ratemaster_rc400.h", "depthpro_dp200.c",
+                 "depthpro_dp200.h"):
         assert (tmp_path / name).read_bytes() == (GENERATED / name).read_bytes(), \
             f"{name} is stale: rerun firmware/byo/generate.sh"
 
