@@ -12,7 +12,10 @@ break. Defects (``--defect KIND:ARG``):
   while enabled, a zero one included: any command below V volts is raised to V, so the meter
   keeps turning while the machine stands (the compensation should skip a zero target);
 * ``ignores-sensor-flags`` — fertilizer: the firmware reads a flow module's Flow and never its
-  status bits, so a report with BaselineReady cleared or AdcOverrange set is used as valid;
+  status bits, so a report with BaselineReady cleared or AdcOverrange set is used as valid,
+  and it has no cross-row check either (a controller whose only defence was the flags: with the
+  reference's cross-row check the ~65-70 % a flagged module reads is left out after 3 s all the
+  same, and the suite rightly passes it);
   sowing depth: the inclinometer's X voltage is used whatever INC_X_Status says (an open
   circuit's 0 mV reads as a 270 mm deep seed);
 * ``no-plausibility`` — fertilizer: no plausibility check of the reported flow (the
@@ -218,8 +221,8 @@ class CommandBias(_Wrapper):
 
 
 class IgnoresSensorFlags(_Wrapper):
-    """Every flow report is taken as BaselineReady = 1, AdcOverrange = 0; every inclinometer
-    frame as INC_X_Status = ok."""
+    """Every flow report is taken as BaselineReady = 1, AdcOverrange = 0 (and no cross-row
+    check: see the module's list); every inclinometer frame as INC_X_Status = ok."""
 
     def __init__(self, inner: Controller, period_s: float, _arg: None = None) -> None:
         super().__init__(inner, period_s)
@@ -228,6 +231,7 @@ class IgnoresSensorFlags(_Wrapper):
         # frame id -> (cantools message, the status signals and the values that say "good")
         self.rewrite: dict[int, tuple[Any, dict[str, int]]] = {}
         if isinstance(inner, FlowController):
+            inner.rows.cross_row = None
             for can_id, row in inner.flow_rows.items():
                 self.rewrite[can_id] = (inner.db.message(f"FlowModule{row}"),
                                         {"BaselineReady": 1, "AdcOverrange": 0})
