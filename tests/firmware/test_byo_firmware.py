@@ -29,6 +29,7 @@ import pytest
 from hil.record import load_traces
 from hil.rig.runner import RunOptions, run_scenario
 from plant_emulators.fertilizer.rig import FertilizerRig
+from tests.helpers.fresh_vectors import assert_vectors_fresh
 from tests.helpers.same_measurements import qualified_measurements
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -119,13 +120,7 @@ def test_a_wrong_binding_is_seen_by_the_comparison(tmp_path: Path, firmware_bin:
 def test_the_vectors_are_what_the_python_build_writes(tmp_path: Path) -> None:
     """ctest replays firmware/byo/tests/data through the C build; they must be the Python
     build's frames of today, or the replay proves nothing about it."""
-    subprocess.run([sys.executable, str(MAKE_VECTORS), str(tmp_path)], check=True, cwd=ROOT,
-                   capture_output=True)
-    written = sorted(p.name for p in tmp_path.iterdir())
-    assert written == sorted(p.name for p in VECTORS.iterdir()) and len(written) == 3
-    for name in written:
-        assert (tmp_path / name).read_text() == (VECTORS / name).read_text(), \
-            f"{name} is stale: rerun {MAKE_VECTORS.relative_to(ROOT)} {VECTORS.relative_to(ROOT)}"
+    assert_vectors_fresh(MAKE_VECTORS, VECTORS, tmp_path, root=ROOT, files=3)
 
 
 def test_the_bus_layer_is_generated_from_the_database(tmp_path: Path) -> None:
