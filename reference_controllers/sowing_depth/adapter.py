@@ -38,6 +38,7 @@ from dataclasses import dataclass
 
 import can
 import canopen
+from canopen.pdo.base import PdoMap
 
 from hil.dut import Controller
 from hil.errors import FrameError
@@ -61,6 +62,7 @@ from reference_controllers.sowing_depth.cia402_master import (
 )
 from reference_controllers.sowing_depth.fuzzy_pid import FuzzyPid, FuzzyPidParams
 from reference_controllers.sowing_depth.ground_speed import NmeaPort, SpeedSources
+from reference_controllers.sowing_depth.pdo_struct import PdoStruct
 from reference_controllers.sowing_depth.roller_hold import RollerHold, RollerHoldParams
 
 SYNC_ID = 0x080
@@ -115,6 +117,21 @@ def resolve_params(params: Mapping[str, ParamValue] | None) -> tuple[FuzzyPidPar
     return core, adapter
 
 
+#: the TPDO and RPDO2 variables the controller uses, by canopen's names (the EDS's)
+TPDO1_FIELDS = ("Statusword", "Position actual value")
+TPDO2_FIELDS = ("Statusword",)
+RPDO2_FIELDS = ("Controlword", "Target velocity")
+
+
+def _fields(pdo: PdoMap, names: tuple[str, ...]) -> tuple[PdoStruct, tuple[int, ...]] | None:
+    """The struct of a TPDO map and where ``names`` sit in it; None if it has none or lacks
+    one of them (canopen's path then reads the frame, and raises on the missing name)."""
+    layout = PdoStruct.build(pdo)
+    if layout is None or not set(names) <= set(layout.names):
+        return None
+    return layout, tuple(layout.names.index(name) for name in names)
+
+
 class DepthController(Controller):
     """The reference depth controller of [D] as an in-process controller.
 
@@ -149,6 +166,14 @@ class DepthController(Controller):
         self.network.add_node(self.drive)
         self.drive.rpdo.read(from_od=True)
         self.drive.tpdo.read(from_od=True)
+        #: TPDO1/2 (statusword; TPDO1 the position too) and RPDO2 (controlword, target
+        #: velocity) as structs laid out from canopen's maps (.pdo_struct: one struct call per
+        #: frame instead of canopen's per-variable path); None where canopen reads them
+        self._tpdo_structs = {pdo: _fields(self.drive.tpdo[pdo], fields)
+                              for pdo, fields in ((1, TPDO1_FIELDS), (2, TPDO2_FIELDS))}
+        command = PdoStruct.build(self.drive.rpdo[2])
+        self._command = (command if command is not None
+                         and set(command.names) == set(RPDO2_FIELDS) else None)
         self.ids = {"incl": wiring.inclinometer_frame_id,
                     "setpoint": wiring.depth_setpoint_frame_id,
                     "speed": wiring.ground_speed_frame_id}
@@ -210,8 +235,16 @@ class DepthController(Controller):
                 self.drive.nmt.send_command(0x01)     # NMT start [0x01, node]
                 return self.network.take()
         elif can_id in (0x180 + self.node_id, 0x280 + self.node_id):
-            self.network.notify(can_id, bytes(msg.data), msg.timestamp)
             pdo = 1 if can_id == 0x180 + self.node_id else 2
+            fields = self._tpdo_structs[pdo]
+            values = None if fields is None else fields[0].unpack(msg.data)
+            if values is not None:
+                self.statusword = values[fields[1][0]]
+                if pdo == 1:
+                    self.position_mm = values[fields[1][1]] / 100.0
+                return []
+            # canopen's own path: a map without a struct layout, a frame shorter than its map
+            self.network.notify(can_id, bytes(msg.data), msg.timestamp)
             self.statusword = int(self.drive.tpdo[pdo]["Statusword"].raw)
             if pdo == 1:
                 self.position_mm = int(self.drive.tpdo[1]["Position actual value"].raw) / 100.0
@@ -291,11 +324,20 @@ class DepthController(Controller):
             self.holding = True
             speed = self.hold.speed(self.position_mm)
         self.speed_mm_s, self.gains = speed, (kp, ki, kd)
-        self.drive.rpdo[2]["Controlword"].raw = controlword
-        self.drive.rpdo[2]["Target velocity"].raw = round(speed * 100.0)
-        self.drive.rpdo[2].transmit()
-        out = self.network.take()
-        command = out.pop()          # RPDO2, transmitted last above
+        velocity = round(speed * 100.0)
+        layout = self._command
+        payload = None if layout is None else layout.pack(
+            {"Controlword": controlword, "Target velocity": velocity})
+        if payload is not None:
+            out = self.network.take()
+            command = can.Message(arbitration_id=layout.cob_id, data=payload,
+                                  is_extended_id=layout.cob_id > 0x7FF)
+        else:                        # canopen's own path (it raises on a value out of range)
+            self.drive.rpdo[2]["Controlword"].raw = controlword
+            self.drive.rpdo[2]["Target velocity"].raw = velocity
+            self.drive.rpdo[2].transmit()
+            out = self.network.take()
+            command = out.pop()          # RPDO2, transmitted last above
         if self.steps % STATUS_EVERY == 0:
             out.append(self._status(valid and enabled, frozen))
             out.append(can.Message(arbitration_id=0x700 + CONTROLLER_NODE_ID,

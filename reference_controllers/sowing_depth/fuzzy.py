@@ -109,6 +109,8 @@ def _support(label: int) -> tuple[tuple[int, float], ...]:
 
 
 SUPPORT: tuple[tuple[tuple[int, float], ...], ...] = tuple(_support(k) for k in range(7))
+if any([j for j, _ in sup] != list(range(sup[0][0], sup[-1][0] + 1)) for sup in SUPPORT):
+    raise AssertionError("fuzzy: an output set's support is not contiguous on the grid")
 _FIRST = tuple(sup[0][0] for sup in SUPPORT)
 _END = tuple(sup[-1][0] + 1 for sup in SUPPORT)
 #: (ΔKp, ΔKi, ΔKd) output labels of rule (e, ec)
@@ -116,25 +118,38 @@ RULES = tuple(tuple((DELTA_KP[i][k], DELTA_KI[i][k], DELTA_KD[i][k]) for k in ra
               for i in range(7))
 
 
+#: per output set: its μ over its support, ascending (the values of SUPPORT)
+_MU = tuple(tuple(m for _, m in sup) for sup in SUPPORT)
+
+
 def centroid(weights: dict[int, float]) -> float:
     """Defuzzify: output sets clipped at their weights, max-aggregated, centroid on the grid.
 
     ``weights``: output label -> clip level (> 0). Returns 0 if nothing fires. The sums run
-    over the grid in ascending order, skipping the points where no set reaches.
+    over the grid in ascending order, skipping the points where no set reaches (the order of
+    the C build's sums: the same floats).
     """
     if not weights:
         return 0.0
-    lo = min(_FIRST[label] for label in weights)
-    mu = [0.0] * (max(_END[label] for label in weights) - lo)
+    lo, hi = len(GRID), 0
+    for label in weights:
+        if _FIRST[label] < lo:
+            lo = _FIRST[label]
+        if _END[label] > hi:
+            hi = _END[label]
+    mu = [0.0] * (hi - lo)
     for label, w in weights.items():
-        for j, m in SUPPORT[label]:
-            v = m if m < w else w
-            if v > mu[j - lo]:
-                mu[j - lo] = v
+        j = _FIRST[label] - lo          # a support is contiguous (checked below the tables)
+        for m in _MU[label]:
+            if m > w:
+                m = w
+            if m > mu[j]:
+                mu[j] = m
+            j += 1
     num = den = 0.0
-    for j, m in enumerate(mu, start=lo):
+    for x, m in zip(GRID[lo:hi], mu, strict=True):
         if m > 0.0:
-            num += GRID[j] * m
+            num += x * m
             den += m
     return num / den if den > 0.0 else 0.0
 
