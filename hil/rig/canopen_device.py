@@ -30,7 +30,8 @@ documented way to put canopen on a custom backend. The runner sends them, so the
 from __future__ import annotations
 
 import math
-from collections.abc import Collection
+import struct
+from collections.abc import Callable, Collection
 from pathlib import Path
 from typing import Any
 
@@ -70,6 +71,10 @@ def _is_communication(index: int) -> bool:
 #: serve the lean sampling of TPDOs (:meth:`CanopenDevice._sample`): packer None means the
 #: variable is sampled by canopen's ``get_data``.
 _Plan = tuple[tuple[Any, int, int, int, int, Any, Any, int, int], ...]
+#: a TPDO framed by one struct (:meth:`CanopenDevice._frame_plan`): (struct, per variable
+#: its application reader, per variable its (lowest, highest), payload length)
+_FramePlan = tuple[struct.Struct, tuple[Callable[[], Any], ...], tuple[tuple[int, int], ...],
+                   int]
 
 
 def _packer(obj: Any) -> tuple[Any, int, int]:
@@ -176,6 +181,8 @@ class CanopenDevice(Device):
         self.rejected: list[tuple[int, int, str]] = []
         #: per PDO map: (its variable list, its length, byte plan or None); see _byte_plan
         self._plans: dict[int, tuple[Any, int, _Plan | None]] = {}
+        #: per TPDO map: (its byte plan, read callbacks then, frame plan); see _frame_plan
+        self._frame_plans: dict[int, tuple[_Plan | None, int, _FramePlan | None]] = {}
         self.node.nmt.state = "PRE-OPERATIONAL"
         #: heartbeat_period_s while 0x1017 is unchanged (None: read it again)
         self._heartbeat_cache: float | None = None
@@ -588,7 +595,28 @@ class CanopenDevice(Device):
         """Hook: refresh the object dictionary from the physics before TPDOs are sampled."""
         return None
 
+    def app_reader(self, index: int, subindex: int) -> Callable[[], Any] | None:
+        """Hook: a function giving what the application's read callback answers now, or None.
+
+        For entry ``index:subindex``; None: the callbacks are asked. A TPDO all of whose
+        variables have one is framed by :meth:`_frame_plan`'s single ``struct`` call. The
+        node's own error objects (0x1001, 0x1003) are never read through it.
+        """
+        return None
+
     def _tpdo_frame(self, tpdo: PdoMap) -> can.Message:
+        fast = self._frame_plan(tpdo)
+        if fast is not None:
+            packer, readers, ranges, size = fast
+            values = [read() for read in readers]
+            for value, (lo, hi) in zip(values, ranges, strict=True):
+                if type(value) is not int or not lo <= value <= hi:
+                    break                   # canopen's rules for this value: the path below
+            else:
+                payload = packer.pack(*values)
+                tpdo.data[:size] = payload
+                return can.Message(arbitration_id=tpdo.cob_id, data=payload,
+                                   is_extended_id=False)
         plan = self._byte_plan(tpdo)
         if plan is None:
             for var in tpdo.map:
@@ -699,6 +727,59 @@ class CanopenDevice(Device):
                          for var in variables)
         self._plans[id(pdo)] = (variables, len(variables), plan)
         return plan
+
+    def _frame_plan(self, pdo: PdoMap) -> _FramePlan | None:
+        """A TPDO's payload as one ``struct`` of the application's values, or None.
+
+        Why: a depth campaign sample frames ~230,000 TPDOs, and asking the read callbacks
+        variable by variable (``_sample``: the node's error objects first, then the drive's
+        callback, its object lookup and its getter) was ~1 s of CPU of its ~15 s. This plan
+        reads each variable with the function :meth:`app_reader` gives and packs the frame
+        with one ``struct``. It exists when the map has a byte plan whose variables are all
+        packed by :meth:`_sample` itself (in-range integers), lie end to end from byte 0 and
+        each have an application reader whose value now is what the callbacks answer (checked
+        when the plan is built; the byte plan has checked the bytes against canopen's
+        ``get_data``). A value that is not an in-range int at run time is framed by the byte
+        plan's path (canopen's rules). Kept as the byte plan is, and rebuilt when a read
+        callback is added.
+        """
+        plan = self._byte_plan(pdo)
+        key = id(pdo)
+        cached = self._frame_plans.get(key)
+        callbacks = len(self._read_callbacks)
+        if cached is not None and cached[0] is plan and cached[1] == callbacks:
+            return cached[2]
+        fast: _FramePlan | None = None
+        if plan is not None and all(step[6] is not None for step in plan):
+            readers: list[Callable[[], Any]] = []
+            fmt, end = "<", 0
+            for _, index, subindex, start, stop, obj, packer, _, _ in plan:
+                read = (None if index in (0x1001, 0x1003) or start != end
+                        else self.app_reader(index, subindex))
+                if read is None or not self._reader_agrees(read, obj, index, subindex):
+                    break
+                readers.append(read)
+                fmt += packer.format.lstrip("<>=!@")
+                end = stop
+            else:
+                if end == len(pdo.data):
+                    fast = (struct.Struct(fmt), tuple(readers),
+                            tuple((step[7], step[8]) for step in plan), end)
+        self._frame_plans[key] = (plan, callbacks, fast)
+        return fast
+
+    def _reader_agrees(self, read: Callable[[], Any], obj: Any, index: int,
+                       subindex: int) -> bool:
+        """Whether an application reader gives what the read callbacks answer now."""
+        try:
+            value = read()
+            for callback in self._read_callbacks:
+                answer = callback(index=index, subindex=subindex, od=obj)
+                if answer is not None:
+                    return type(answer) is type(value) and answer == value
+        except (canopen.SdoAbortedError, ValueError, KeyError, LookupError):
+            return False
+        return False                        # no callback answers: the data store does
 
     def _checked_packer(self, obj: Any, index: int, subindex: int) -> tuple[Any, int, int]:
         """:func:`_packer` of an entry if :meth:`_sample` gives canopen's bytes for it now."""

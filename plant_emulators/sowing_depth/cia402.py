@@ -52,6 +52,8 @@ Example
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from functools import partial
 from types import ModuleType
 
 from plant_emulators.sowing_depth.cia402_objects import (
@@ -217,6 +219,26 @@ class Cia402Drive:
         if getter is not None:
             return getter(self)
         return self._od[key]
+
+    def reader(self, index: int, subindex: int) -> Callable[[], int]:
+        """A function of nothing giving :meth:`read`'s value of object ``index:subindex`` now.
+
+        For the rig's CANopen node, which samples the same few objects into TPDOs at every
+        SYNC (:meth:`hil.rig.canopen_device.CanopenDevice.app_reader`): the object is looked
+        up once here rather than at each read.
+
+        Raises
+        ------
+        DriveObjectError
+            If the drive does not own the object (as :meth:`read`).
+        """
+        key = (index, subindex)
+        if key not in OBJECTS:
+            self._spec_of(index, subindex)          # raises the right abort code
+        getter = _COMPUTED.get(key)
+        if getter is not None:
+            return partial(getter, self)
+        return partial(self._od.__getitem__, key)
 
     def write(self, index: int, subindex: int, value: int) -> None:
         """Write ``value`` (object-dictionary units) to object ``index:subindex``.

@@ -9,6 +9,7 @@ is a CANopen CiA 402 node on its EDS whose object dictionary entries are the dri
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import can
@@ -45,6 +46,12 @@ class ServoDriveDevice(CanopenDevice):
         # drive.owns() inlined: every TPDO sample passes here
         if (index, subindex) in OBJECTS:
             return int(self.drive.read(index, subindex))
+        return None
+
+    def app_reader(self, index: int, subindex: int) -> Callable[[], int] | None:
+        """The drive's reader of an object it owns (what :meth:`_on_read` answers), else None."""
+        if (index, subindex) in OBJECTS:
+            return self.drive.reader(index, subindex)
         return None
 
     def _on_write(self, index: int, subindex: int, od: Any, data: bytes) -> None:
