@@ -66,10 +66,10 @@ Where commands run, and the rules that adapt them (the only ones):
 ``SKIPPED`` lists, per document, the lines that are not run, each with its reason. Any other
 line is run: a new example either runs or fails until it is listed, and a ``SKIPPED`` entry whose
 line left its document fails too. After a command, the outputs its document promises are checked
-(``hil qualify``: record.json, junit.xml, report.html; ``hil run``: record.json, bus.log,
-bus.asc, traces.npz, plot.png with ``--plot``; ``hil gate``: the ``--summary`` file, the
-baseline written by ``--update-baseline``; ``firmware/generate.sh``: files identical to the
-committed ones).
+(``hil qualify``: record.json, junit.xml, report.html, and the ``--build-id`` in the record;
+``hil run``: record.json, bus.log, bus.asc, traces.npz, plot.png with ``--plot``; ``hil
+gate``: the ``--summary`` file, the baseline written by ``--update-baseline``;
+``firmware/generate.sh``: files identical to the committed ones).
 
 ``test_readme_main_job`` (marked ``slow``) runs the command that ``scripts/qualify.sh`` execs
 (README's main job, ~25 s), after checking that it is the one README quotes; the script itself
@@ -570,6 +570,11 @@ def check_outputs(line: ShellLine, argv: list[str], cwd: Path, result: Result) -
         out = option(argv, "--out", "out")
         for name in ("record.json", "junit.xml", "report.html"):
             must_exist(f"{out}/{name}", "hil qualify:")
+        build_id = option(argv, "--build-id")
+        if build_id is not None:                 # "dut.build_id: ... or --build-id"
+            record = json.loads((cwd / f"{out}/record.json").read_text())
+            assert record["dut"]["build_id"] == build_id, (
+                f"{line.where}\n  record.json has dut.build_id {record['dut']['build_id']!r}")
         reasons = line.comment.partition(":")[2] if result.returncode == 1 else ""
         if reasons.strip():
             record = json.loads((cwd / f"{out}/record.json").read_text())
