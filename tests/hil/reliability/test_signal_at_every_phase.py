@@ -13,6 +13,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.fuzz.cli import run_cli
+
 ROOT = Path(__file__).resolve().parents[3]
 PROFILE = ROOT / "dut_profiles" / "fertilizer-piecewise-pid-daemon.toml"
 HIL = [sys.executable, "-m", "hil"]
@@ -60,9 +62,8 @@ def test_a_sigint_at_each_phase_is_never_lost(tmp_path: Path, at: str) -> None:
         assert record["verdict"] == "pass" and len(record["tests"]) == 2
     else:
         assert record["verdict"] == "interrupted", record["verdict"]
-        gate = subprocess.run([*HIL, "gate", str(out / "record.json")], cwd=ROOT,
-                              capture_output=True, text=True, timeout=120)
-        assert gate.returncode == 2, gate.stdout + gate.stderr
+        gate = run_cli("gate", str(out / "record.json"))     # in this process
+        assert gate.code == 2, gate.stdout + gate.stderr
 
 
 def test_a_swallowed_keyboard_interrupt_still_ends_interrupted(tmp_path: Path) -> None:
