@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 import struct
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from canopen.objectdictionary import ODVariable
@@ -89,11 +89,14 @@ class PdoStruct:
     def pack(self, values: Mapping[str, int]) -> bytes | None:
         """The payload of ``values`` (name → integer for every mapped variable), or None if a
         value is not an int inside its data type (canopen raises or warns on those)."""
-        ordered = [values[name] for name in self.names]
-        for value, (lo, hi) in zip(ordered, self.ranges, strict=True):
+        return self.pack_values([values[name] for name in self.names])
+
+    def pack_values(self, values: Sequence[int]) -> bytes | None:
+        """:meth:`pack` of the values in the map's order (:attr:`names`)."""
+        for value, (lo, hi) in zip(values, self.ranges, strict=True):
             if type(value) is not int or not lo <= value <= hi:
                 return None
-        return self.struct.pack(*ordered)
+        return self.struct.pack(*values)
 
     def _agrees(self, pdo: Any) -> bool:
         """Whether packing and unpacking give canopen's bytes and values on probe values.
