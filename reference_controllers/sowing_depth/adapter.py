@@ -2,7 +2,9 @@
 
 Section 2, "CAN adapter", of ``docs/reference-controllers.md``. Plain frames go through the
 rig's DBC (:class:`FrameCodec`), the drive's PDOs through canopen PDO maps read from its EDS
-(a :class:`canopen.RemoteNode` on an :class:`OutboxNetwork`, no bus of its own).
+(a :class:`canopen.RemoteNode` on an :class:`OutboxNetwork`, no bus of its own); the PDOs of
+every step (TPDO1/2 in, RPDO2 out) are packed and unpacked by one ``struct`` laid out from
+those maps (:mod:`.pdo_struct`, checked against canopen), the rest by canopen itself.
 
 * on the drive's heartbeat 0x702 showing anything but Operational: NMT start ``[0x01, 2]``;
 * once Operational: Modes of operation = 3 (profile velocity) through RPDO3, once (again
