@@ -62,6 +62,11 @@ Where commands run, and the rules that adapt them (the only ones):
 7. **A line ending in ``&``** (a process the example keeps running, such as the controller that
    plays an outside ECU) runs in the background until the end of its block, then gets SIGTERM;
    it must still be running then (a background process that died is a failed example).
+8. **A ``hil`` line** (not ``hil bus serve``, which runs in the background) runs in a ``hil``
+   process of its own forked from a server that has imported ``hil`` and its libraries once
+   (tests/fuzz/hil_forkserver.py): the same argv, cwd, environment and ``sys.argv``, exit
+   status and output as the ``hil`` script gives, without ~0.45 s of interpreter start-up
+   and imports per line (~50 lines in the default run).
 
 ``SKIPPED`` lists, per document, the lines that are not run, each with its reason. Any other
 line is run: a new example either runs or fails until it is listed, and a ``SKIPPED`` entry whose
@@ -106,6 +111,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.fuzz.hil_forkserver import HilForkServer, HilTimeout
 from tests.helpers.session_shared import built_once
 
 REPO = Path(__file__).resolve().parents[1]
@@ -469,8 +475,15 @@ class Result:
     seconds: float
 
 
-def run(argv: list[str], cwd: Path) -> Result:
+def run(argv: list[str], cwd: Path, hil: HilForkServer | None = None) -> Result:
+    """``argv`` in ``cwd`` with :func:`child_env`; a ``hil`` line through ``hil`` (rule 8)."""
     t0 = time.monotonic()
+    if hil is not None and argv[0] == "hil":
+        try:
+            done = hil.run(argv[1:], cwd, timeout_s=LINE_TIMEOUT_S)
+        except HilTimeout:
+            pytest.fail(f"{shlex.join(argv)} still ran after {LINE_TIMEOUT_S} s")
+        return Result(done.returncode, done.stdout, done.stderr, time.monotonic() - t0)
     try:
         proc = subprocess.run(argv, cwd=cwd, env=child_env(), capture_output=True, text=True,
                               timeout=LINE_TIMEOUT_S, stdin=subprocess.DEVNULL)
@@ -504,8 +517,9 @@ class QualifyMemo:
     the line runs it and keeps its result and output directory; a later one, on either worker,
     waits for it if it is still running and gets a copy."""
 
-    def __init__(self, factory: pytest.TempPathFactory) -> None:
+    def __init__(self, factory: pytest.TempPathFactory, hil: HilForkServer) -> None:
         self.factory = factory
+        self.hil = hil
 
     def run(self, argv: list[str], cwd: Path) -> tuple[Result, bool]:
         out = cwd / (option(argv, "--out", "out") or "out")
@@ -519,7 +533,7 @@ class QualifyMemo:
                 if kept.exists():
                     shutil.copytree(kept, out)
                 return Result(**json.loads(saved.read_text())), True
-            result = run(argv, cwd)
+            result = run(argv, cwd, self.hil)
             if out.exists():
                 shutil.copytree(out, kept)
             saved.write_text(json.dumps(asdict(result)))
@@ -527,8 +541,16 @@ class QualifyMemo:
 
 
 @pytest.fixture(scope="session")
-def qualify_memo(tmp_path_factory: pytest.TempPathFactory) -> QualifyMemo:
-    return QualifyMemo(tmp_path_factory)
+def hil_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HilForkServer]:
+    """Rule 8: the fork server of this worker's ``hil`` lines, in the examples' environment."""
+    with HilForkServer(tmp_path_factory.mktemp("hil-forkserver"), env=child_env()) as server:
+        yield server
+
+
+@pytest.fixture(scope="session")
+def qualify_memo(tmp_path_factory: pytest.TempPathFactory,
+                 hil_server: HilForkServer) -> QualifyMemo:
+    return QualifyMemo(tmp_path_factory, hil_server)
 
 
 @pytest.fixture(scope="session")
@@ -697,7 +719,7 @@ class DocRunner:
         if argv[:2] == ["hil", "qualify"]:
             result, reused = self.memo.run(argv, self.cwd)
         else:
-            result, reused = run(argv, self.cwd), False
+            result, reused = run(argv, self.cwd, self.memo.hil), False
         if invalid_bench(argv, self.cwd, result):
             # a real-time qualification on a shared VM: the rig judged its own timing out of
             # bounds and said so (exit 2, verdict invalid-bench), which is no verdict on the

@@ -1,12 +1,14 @@
 """``hil ARGV`` in a process of its own, forked from a server that imported ``hil`` once.
 
 Why: the CLI fuzz test runs each bad argv as a separate ``hil`` process with a time limit (a
-refused option must not start a server that serves for ever), and ~85 % of such a process's
-CPU is the interpreter and ``hil``'s imports (~0.45 s of ~0.5 s, measured), paid again for
-every example. A child forked from a fresh interpreter that has only imported
-``hil.cli.main`` is still a ``hil`` process of its own: its own session, cwd, stdin from
-``/dev/null``, stdout and stderr to files, an uncaught exception printed as a traceback and
-exit 1, as ``python -m hil`` does.
+refused option must not start a server that serves for ever), and the docs test runs each
+``hil`` line of the docs as a reader types it; ~85 % of such a short process's CPU is the
+interpreter and ``hil``'s imports (~0.45 s of ~0.5 s, measured), paid again for every command.
+A child forked from a fresh interpreter that has imported ``hil`` and the libraries its
+subcommands use is still a ``hil`` process of its own: its own session, cwd, the server's
+environment, ``sys.argv`` as the ``hil`` script sets it, stdin from ``/dev/null``, stdout and
+stderr to files, ``main``'s return value its exit status, an uncaught exception printed as a
+traceback and exit 1, as the ``hil`` script and ``python -m hil`` do.
 
 The server is a plain interpreter started from the repository root (``python -c``, so
 ``sys.path`` is what ``python -m hil`` run there has), not the test process: a fork of pytest
@@ -58,8 +60,10 @@ def _child(request: dict[str, Any]) -> int:
         os.close(target)
     from hil.cli.main import main
 
+    argv = [str(a) for a in request["argv"]]
+    sys.argv = [sys.argv[0], *argv]                 # the record's "command"
     try:
-        code = main([str(a) for a in request["argv"]])
+        code = main(argv)
     except SystemExit as exc:
         code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
     except BaseException:                              # as the interpreter reports it
@@ -70,10 +74,12 @@ def _child(request: dict[str, Any]) -> int:
     return int(code)
 
 
-def serve() -> None:
-    """The server's loop: fork a child per request line, report its pid and its status."""
+def serve(argv0: str) -> None:
+    """The server's loop: fork a child per request line, report its pid and its status.
+    ``argv0`` is the children's ``sys.argv[0]`` (the ``hil`` script a shell would run)."""
     import importlib
 
+    sys.argv = [argv0]
     for name in PRELOAD:
         importlib.import_module(name)
 
@@ -103,15 +109,18 @@ class HilTimeout(Exception):
 
 
 class HilForkServer:
-    """The client: ``run(argv, timeout)`` as ``subprocess.run([python, -m, hil, *argv])``."""
+    """The client: ``run(argv, cwd, timeout_s)`` as ``subprocess.run(["hil", *argv])`` with
+    the environment ``env`` (default: this process's) that the server starts with."""
 
-    def __init__(self, scratch: Path) -> None:
+    def __init__(self, scratch: Path, env: dict[str, str] | None = None) -> None:
         self.scratch = scratch
         self.count = 0
         self.buffer = b""
+        script = str(Path(sys.executable).with_name("hil"))
         self.proc = subprocess.Popen(
-            [sys.executable, "-c", "from tests.fuzz.hil_forkserver import serve; serve()"],
-            cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE, bufsize=0)
+            [sys.executable, "-c", "import sys; from tests.fuzz.hil_forkserver import serve; "
+             "serve(sys.argv[1])", script],
+            cwd=ROOT, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, bufsize=0)
 
     def _answer(self, timeout_s: float) -> dict[str, int] | None:
         """The server's next answer line, or None when none came within ``timeout_s``."""
