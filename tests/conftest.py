@@ -54,24 +54,22 @@ LONGEST_FIRST = (
     f"{DOCS}[docs/guide/campaigns.md",                      # ~27 s: a campaign on 2 workers
     f"{DOCS}[docs/guide/physical-ecu.md",                   # ~26 s in real time
     "tests/test_suites_depth_discrimination.py",            # 3 x ~19 s, 4 x ~6 s
-    f"{DOCS}[docs/getting-started/reading-a-report.md",     # ~17 s
-    "tests/hil/campaign/test_fork_isolation.py",            # ~15 s, ~5 s
-    f"{DOCS}[docs/guide/dut-profiles.md",                   # ~14 s, shared with 4 other units
-    f"{DOCS}[docs/guide/reference-qualification.md",        # ~14 s
-    "tests/hil/campaign/test_campaign_e2e.py",              # ~13 s
-    "tests/test_discrimination.py",                         # 5 x 10-14 s
+    f"{DOCS}[docs/guide/dut-profiles.md",                   # ~19 s, shared with 4 other units
+    "tests/test_discrimination.py",                         # ~14 s, 4 x 4-8 s
+    "tests/hil/campaign/test_fork_isolation.py",            # ~12 s, 2 x ~5 s
     f"{DOCS}[docs/guide/writing-a-fertilizer-controller.md",  # ~11 s
     # builds the browser tests' two qualifications (~10 s) for the other 10
     "tests/browser/test_report_in_chromium.py::test_page_loads_without_console_errors[pass]",
-    "tests/hil/reliability/test_signal_at_every_phase.py",
-    "tests/fuzz/test_fuzz_cli_args.py",                     # ~10 s
+    "tests/hil/campaign/test_campaign_e2e.py",              # ~8 s
     "tests/test_docs_build.py",                             # ~8 s
-    "tests/hil/reliability/test_dead_dut_qualification.py",
+    "tests/hil/reliability/test_signal_at_every_phase.py",
     "tests/hil/reliability/test_interrupted_qualification.py",
+    "tests/hil/reliability/test_dead_dut_qualification.py",
+    f"{DOCS}[docs/getting-started/reading-a-report.md",     # ~6 s
     "tests/hil/conformance/test_discrimination_bus.py",
     "tests/hil/test_pytest_plugin.py",
     "tests/test_busload_suite.py",
-    DOCS,                                                   # the other docs units, 1-10 s
+    DOCS,                                                   # the other docs units, 1-8 s
     "tests/kernel/test_physical_ecu.py",                    # ~5 s, ~3.5 s
     "tests/plant_emulators/test_sowing_depth_rig.py",
     "tests/firmware/test_dut_bus_close.py",

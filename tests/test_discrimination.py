@@ -160,7 +160,7 @@ def test_reference_passes(tmp_path: Path) -> None:
 
 #: must-fail profiles qualified in the default run, one per kind of defect (control law,
 #: sensor trust, standstill, a dying DUT, ...); the others run with ``-m slow`` (each
-#: qualification takes 12-22 s, and the default run must stay well under 10 minutes)
+#: qualification takes 4-10 s on its tests, and the default run must stay under 6 minutes)
 FAST_SUBSET = {
     # a dying DUT: tests/hil/reliability/test_dead_dut_qualification.py fails one in the
     # default run (a crash, an exit 0), so its qualification here runs with -m slow
