@@ -2,8 +2,9 @@
 suites, and each must-fail profile (``dut_profiles/must_fail/fertilizer-*.toml``) fails them on
 the measurement its defect breaks.
 
-Each case is ``hil qualify PROFILE --bus inline -k SELECTION`` in a subprocess (the way a
-user's CI meets it), judged from its ``record.json``. The reference is qualified on every test
+Each case is ``hil qualify PROFILE --bus inline -k SELECTION`` in a process of its own (the
+way a user's CI meets it; forked from a server that imported ``hil`` once), judged from its
+``record.json``. The reference is qualified on every test
 the must-fails are judged on (``SELECTION``); a must-fail on the tests that record the
 measurements checked of it (``MEASURED_BY``: what it must fail and what it must pass), since
 the verdict of its other tests is asserted nowhere and their runs only cost time. The depth
@@ -13,14 +14,13 @@ profiles have their own file (``tests/test_suites_depth_discrimination.py``).
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
 import pytest
 
 from hil.dut.profile import load_profile, must_fail_claims
+from tests.fuzz.hil_forkserver import Done, HilForkServer
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "dut_profiles" / "fertilizer-piecewise-pid-daemon.toml"
@@ -122,15 +122,14 @@ def test_every_must_fail_header_is_checked_here() -> None:
         assert must_fail_claims(MUST_FAIL / f"{name}.toml") <= set(expected) | slow, name
 
 
-def _qualify(profile: Path, out: Path, selection: str | None = SELECTION,
-             suite: str | None = None, bus: str = "inline",
-             ) -> tuple[subprocess.CompletedProcess[str], dict[str, Any]]:
-    """``hil qualify PROFILE`` in a subprocess (``-k selection`` unless None), its record."""
-    proc = subprocess.run(
-        [sys.executable, "-m", "hil", "qualify", str(profile), "--bus", bus,
-         "--out", str(out), *(["-k", selection] if selection else []), "--quiet",
-         *(["--suite", suite] if suite else [])],
-        capture_output=True, text=True, cwd=ROOT, timeout=600)
+def _qualify(hil: HilForkServer, profile: Path, out: Path, selection: str | None = SELECTION,
+             suite: str | None = None, bus: str = "inline") -> tuple[Done, dict[str, Any]]:
+    """``hil qualify PROFILE`` in a process of its own (``-k selection`` unless None), forked
+    by ``hil`` (the ``hil_forked`` fixture: ``python -m hil`` without its start-up), and its
+    record."""
+    proc = hil.run(["qualify", str(profile), "--bus", bus, "--out", str(out),
+                    *(["-k", selection] if selection else []), "--quiet",
+                    *(["--suite", suite] if suite else [])], ROOT, timeout_s=600)
     record_path = out / "record.json"
     assert record_path.exists(), proc.stdout + proc.stderr
     return proc, json.loads(record_path.read_text())
@@ -149,8 +148,8 @@ def test_every_must_fail_fertilizer_profile_is_covered_and_judged_as_the_referen
         assert profile.rig_config == reference.rig_config, path.name
 
 
-def test_reference_passes(tmp_path: Path) -> None:
-    proc, record = _qualify(REFERENCE, tmp_path / "q")
+def test_reference_passes(tmp_path: Path, hil_forked: HilForkServer) -> None:
+    proc, record = _qualify(hil_forked, REFERENCE, tmp_path / "q")
     assert proc.returncode == 0 and record["verdict"] == "pass", proc.stdout + proc.stderr
     names = {m["name"] for m in record["measurements"]}
     assert {"flow.step.response_time", "flow.bench.accuracy"} <= names
@@ -180,8 +179,9 @@ def must_fail_selection(name: str) -> str:
 @pytest.mark.parametrize("name", [
     name if name in FAST_SUBSET else pytest.param(name, marks=pytest.mark.slow)
     for name in sorted(EXPECTED)])
-def test_must_fail_profile_fails_on_its_defect(tmp_path: Path, name: str) -> None:
-    proc, record = _qualify(MUST_FAIL / f"{name}.toml", tmp_path / "q",
+def test_must_fail_profile_fails_on_its_defect(tmp_path: Path, name: str,
+                                               hil_forked: HilForkServer) -> None:
+    proc, record = _qualify(hil_forked, MUST_FAIL / f"{name}.toml", tmp_path / "q",
                             must_fail_selection(name))
     assert proc.returncode == 1 and record["verdict"] == "fail", proc.stdout + proc.stderr
     for measurement, at_least in EXPECTED[name].items():
@@ -204,15 +204,15 @@ def test_must_fail_profile_fails_on_its_defect(tmp_path: Path, name: str) -> Non
 REFERENCE_BUILDS = ("fertilizer-piecewise-pid-daemon", "fertilizer-piecewise-pid-firmware")
 
 
-def _reference_builds_measure(tmp_path: Path, selection: str, measurement: str,
-                               count: int) -> None:
+def _reference_builds_measure(hil: HilForkServer, tmp_path: Path, selection: str,
+                               measurement: str, count: int) -> None:
     """Both reference builds pass the tests ``selection`` picks, and record the same values
     of ``measurement`` (``count`` conditions): the C firmware is the Python, bit for bit."""
     values = {}
     for build in REFERENCE_BUILDS:
         bus = "inline" if build.endswith("-daemon") else "softbus"
-        proc, record = _qualify(ROOT / "dut_profiles" / f"{build}.toml", tmp_path / build,
-                                selection, bus=bus)
+        proc, record = _qualify(hil, ROOT / "dut_profiles" / f"{build}.toml",
+                                tmp_path / build, selection, bus=bus)
         assert proc.returncode == 0 and record["verdict"] == "pass", proc.stdout + proc.stderr
         values[build] = sorted((str(m["conditions"]), m["value"])
                                for m in record["measurements"] if m["name"] == measurement)
@@ -221,25 +221,29 @@ def _reference_builds_measure(tmp_path: Path, selection: str, measurement: str,
 
 
 @pytest.mark.slow
-def test_references_pass_switched_rows_identically(tmp_path: Path) -> None:
+def test_references_pass_switched_rows_identically(tmp_path: Path,
+                                                   hil_forked: HilForkServer) -> None:
     """The reference meters each switched row within [F]'s field accuracy, and its two
     builds lay the same grams (the C firmware must stay identical to the Python)."""
-    _reference_builds_measure(tmp_path, "switched_rows", "flow.rows.applied_accuracy", 8)
+    _reference_builds_measure(hil_forked, tmp_path, "switched_rows",
+                              "flow.rows.applied_accuracy", 8)
 
 
 @pytest.mark.slow
-def test_references_pass_sensor_plausibility_identically(tmp_path: Path) -> None:
+def test_references_pass_sensor_plausibility_identically(tmp_path: Path,
+                                                         hil_forked: HilForkServer) -> None:
     """The reference leaves out a module that reads wrong with good flags (the cross-row
     check), and its Python and C builds meter the same grams doing so."""
-    _reference_builds_measure(tmp_path, "sensor_plausibility",
+    _reference_builds_measure(hil_forked, tmp_path, "sensor_plausibility",
                               "flow.fault.sensor_plausibility.accuracy", 3)
 
 
 @pytest.mark.slow
-def test_loaded_bus_suite_fails_a_controller_that_ignores_the_setpoint(tmp_path: Path) -> None:
+def test_loaded_bus_suite_fails_a_controller_that_ignores_the_setpoint(
+        tmp_path: Path, hil_forked: HilForkServer) -> None:
     """The busload suite (real time, ~55 s) judges accuracy like the bench: a DUT that runs
     its own target fails it."""
-    proc, record = _qualify(MUST_FAIL / "fertilizer-ignores-setpoint-daemon.toml",
+    proc, record = _qualify(hil_forked, MUST_FAIL / "fertilizer-ignores-setpoint-daemon.toml",
                             tmp_path / "q", "accuracy_on_a_loaded_bus", suite="busload",
                             bus="softbus")
     assert [t["nodeid"] for t in record["tests"]], proc.stdout + proc.stderr

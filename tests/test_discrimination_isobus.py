@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from hil.dut.profile import load_profile, must_fail_claims
+from tests.fuzz.hil_forkserver import HilForkServer
 from tests.test_discrimination import _qualify
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -75,8 +76,9 @@ def test_every_isobus_must_fail_profile_is_checked_here_as_its_header_says() -> 
         assert must_fail_claims(path) == set(EXPECTED[path.stem][1]), path.name
 
 
-def test_the_isobus_reference_qualifies_on_the_isobus_suite(tmp_path: Path) -> None:
-    proc, record = _qualify(REFERENCE, tmp_path / "q", None)
+def test_the_isobus_reference_qualifies_on_the_isobus_suite(tmp_path: Path,
+                                                            hil_forked: HilForkServer) -> None:
+    proc, record = _qualify(hil_forked, REFERENCE, tmp_path / "q", None)
     assert proc.returncode == 0 and record["verdict"] == "pass", proc.stdout + proc.stderr
     assert record["suites"] == ["isobus"]      # chosen for [wiring] isobus = true
     names = {m["name"] for m in record["measurements"]}
@@ -92,9 +94,10 @@ def test_the_isobus_reference_qualifies_on_the_isobus_suite(tmp_path: Path) -> N
 @pytest.mark.parametrize("name", [
     name if name in FAST_SUBSET else pytest.param(name, marks=pytest.mark.slow)
     for name in sorted(EXPECTED)])
-def test_isobus_must_fail_profile_fails_on_its_defect(tmp_path: Path, name: str) -> None:
+def test_isobus_must_fail_profile_fails_on_its_defect(tmp_path: Path, name: str,
+                                                     hil_forked: HilForkServer) -> None:
     selection, expected = EXPECTED[name]
-    proc, record = _qualify(MUST_FAIL / f"{name}.toml", tmp_path / "q", selection)
+    proc, record = _qualify(hil_forked, MUST_FAIL / f"{name}.toml", tmp_path / "q", selection)
     assert proc.returncode == 1 and record["verdict"] == "fail", proc.stdout + proc.stderr
     for measurement, at_least in expected.items():
         got = [m for m in record["measurements"] if m["name"] == measurement]

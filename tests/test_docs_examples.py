@@ -543,7 +543,8 @@ class QualifyMemo:
 @pytest.fixture(scope="session")
 def hil_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HilForkServer]:
     """Rule 8: the fork server of this worker's ``hil`` lines, in the examples' environment."""
-    with HilForkServer(tmp_path_factory.mktemp("hil-forkserver"), env=child_env()) as server:
+    with HilForkServer(tmp_path_factory.mktemp("hil-forkserver"), env=child_env(),
+                       script=True) as server:
         yield server
 
 

@@ -10,14 +10,17 @@ environment, ``sys.argv`` as the ``hil`` script sets it, stdin from ``/dev/null`
 stderr to files, ``main``'s return value its exit status, an uncaught exception printed as a
 traceback and exit 1, as the ``hil`` script and ``python -m hil`` do.
 
-The server is a plain interpreter started from the repository root (``python -c``, so
-``sys.path`` is what ``python -m hil`` run there has), not the test process: a fork of pytest
-would inherit its logging handlers, warning filters and threads. It is not
+The server is a plain interpreter, not the test process (a fork of pytest would inherit its
+logging handlers, warning filters and threads), with the ``sys.path[0]`` and ``sys.argv[0]``
+of the command it stands for: the ``hil`` script (``script=True``: the script's directory,
+as a shell's ``hil`` has) or ``python -m hil`` run in the repository (its root). It is not
 :mod:`multiprocessing`'s fork server, whose one server per process is shared with (and
 configured by) ``hil.campaign.forked`` in the same test worker.
 
-Protocol, one JSON line each way: request ``{"argv", "cwd", "stdout", "stderr"}``, answers
-``{"pid"}`` at once and ``{"status"}`` (``waitstatus_to_exitcode``) when the child ends.
+Protocol, one JSON line each way: request ``{"argv", "cwd", "env", "stdout", "stderr"}``
+(``env``: variables set in the child on top of the server's environment; one a preloaded
+module reads when it is imported keeps the server's value), answers ``{"pid"}`` at once and
+``{"status"}`` (``waitstatus_to_exitcode``) when the child ends.
 """
 
 from __future__ import annotations
@@ -52,6 +55,7 @@ def _child(request: dict[str, Any]) -> int:
     """In the forked child: become ``hil`` with the request's argv, cwd and output files."""
     os.setsid()
     os.chdir(str(request["cwd"]))
+    os.environ.update(request.get("env") or {})
     null = os.open(os.devnull, os.O_RDONLY)
     os.dup2(null, 0)
     for fd, key in ((1, "stdout"), (2, "stderr")):
@@ -74,12 +78,13 @@ def _child(request: dict[str, Any]) -> int:
     return int(code)
 
 
-def serve(argv0: str) -> None:
+def serve(argv0: str, path0: str) -> None:
     """The server's loop: fork a child per request line, report its pid and its status.
-    ``argv0`` is the children's ``sys.argv[0]`` (the ``hil`` script a shell would run)."""
+    ``argv0`` and ``path0`` are the children's ``sys.argv[0]`` and ``sys.path[0]``."""
     import importlib
 
     sys.argv = [argv0]
+    sys.path[0] = path0
     for name in PRELOAD:
         importlib.import_module(name)
 
@@ -109,17 +114,20 @@ class HilTimeout(Exception):
 
 
 class HilForkServer:
-    """The client: ``run(argv, cwd, timeout_s)`` as ``subprocess.run(["hil", *argv])`` with
-    the environment ``env`` (default: this process's) that the server starts with."""
+    """The client: ``run(argv, cwd, timeout_s)`` as ``subprocess.run`` of the ``hil`` script
+    (``script``) or of ``python -m hil``, with the environment ``env`` (default: this
+    process's) that the server starts with."""
 
-    def __init__(self, scratch: Path, env: dict[str, str] | None = None) -> None:
+    def __init__(self, scratch: Path, env: dict[str, str] | None = None, *,
+                 script: bool = False) -> None:
         self.scratch = scratch
         self.count = 0
         self.buffer = b""
-        script = str(Path(sys.executable).with_name("hil"))
+        hil = Path(sys.executable).with_name("hil")
+        argv0, path0 = ((hil, hil.parent) if script else (ROOT / "hil" / "__main__.py", ROOT))
         self.proc = subprocess.Popen(
             [sys.executable, "-c", "import sys; from tests.fuzz.hil_forkserver import serve; "
-             "serve(sys.argv[1])", script],
+             "serve(*sys.argv[1:])", str(argv0), str(path0)],
             cwd=ROOT, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, bufsize=0)
 
     def _answer(self, timeout_s: float) -> dict[str, int] | None:
@@ -138,11 +146,13 @@ class HilForkServer:
         answer: dict[str, int] = json.loads(line)
         return answer
 
-    def run(self, argv: list[str], cwd: Path, timeout_s: float) -> Done:
+    def run(self, argv: list[str], cwd: Path, timeout_s: float,
+            env: dict[str, str] | None = None) -> Done:
         assert self.proc.stdin is not None
         self.count += 1
         out, err = (self.scratch / f"{self.count}.{name}" for name in ("out", "err"))
-        request = {"argv": argv, "cwd": str(cwd), "stdout": str(out), "stderr": str(err)}
+        request = {"argv": argv, "cwd": str(cwd), "env": env or {}, "stdout": str(out),
+                   "stderr": str(err)}
         self.proc.stdin.write(json.dumps(request).encode() + b"\n")
         started = self._answer(60)
         assert started is not None, "the hil fork server did not fork within 60 s"

@@ -14,7 +14,6 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -25,21 +24,15 @@ from tests.fuzz.cli_cases import ROOT, bad_argv
 from tests.fuzz.hil_forkserver import HilForkServer, HilTimeout
 
 
-@pytest.fixture(scope="module")
-def hil_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HilForkServer]:
-    with HilForkServer(tmp_path_factory.mktemp("hil-forkserver")) as server:
-        yield server
-
-
 @settings(max_examples=int(os.environ.get("AGRIHIL_FUZZ_CLI_EXAMPLES", "30")))
 @given(data=st.data())
 def test_bad_arguments_are_refused_up_front(data: st.DataObject,
                                             tmp_path_factory: pytest.TempPathFactory,
-                                            hil_server: HilForkServer) -> None:
+                                            hil_forked: HilForkServer) -> None:
     tmp = tmp_path_factory.mktemp("cli")
     case, argv = data.draw(bad_argv(tmp))
     try:
-        done = hil_server.run(argv, ROOT, timeout_s=60)
+        done = hil_forked.run(argv, ROOT, timeout_s=60)
     except HilTimeout:
         pytest.fail(f"{case}: {argv} was accepted and still ran after 60 s")
     assert "Traceback" not in done.stderr, (case, done.stderr[-1500:])
@@ -52,7 +45,7 @@ def test_bad_arguments_are_refused_up_front(data: st.DataObject,
 
 
 def test_the_fork_server_reports_what_a_hil_process_does(tmp_path: Path,
-                                                        hil_server: HilForkServer) -> None:
+                                                        hil_forked: HilForkServer) -> None:
     """The fuzz test's checks are only as good as its runner: the fork server sees the exit
     status, the one-line error as ``python -m hil`` prints it, a traceback, and a command
     that does not stop (killed at the time limit, the server still serving)."""
@@ -62,17 +55,17 @@ def test_the_fork_server_reports_what_a_hil_process_does(tmp_path: Path,
         return subprocess.run([sys.executable, "-m", "hil", *argv], cwd=ROOT,
                               capture_output=True, text=True, timeout=60)
 
-    helped = hil_server.run(["--help"], ROOT, timeout_s=60)
+    helped = hil_forked.run(["--help"], ROOT, timeout_s=60)
     assert helped.returncode == 0 and helped.stdout.startswith("usage: hil")
-    refused = hil_server.run(["profile", "check", missing], ROOT, timeout_s=60)
+    refused = hil_forked.run(["profile", "check", missing], ROOT, timeout_s=60)
     checked = direct("profile", "check", missing)
     assert (refused.returncode, refused.stderr) == (checked.returncode, checked.stderr) == (
         2, f"hil: error: {missing}: DUT profile not found\n")
-    crashed = hil_server.run(["--debug", "report", missing], ROOT, timeout_s=60)
+    crashed = hil_forked.run(["--debug", "report", missing], ROOT, timeout_s=60)
     reported = direct("--debug", "report", missing)
     assert crashed.returncode == reported.returncode == 1
     assert "Traceback (most recent call last)" in crashed.stderr
     assert crashed.stderr.splitlines()[-1] == reported.stderr.splitlines()[-1]
     with pytest.raises(HilTimeout):
-        hil_server.run(["bus", "serve", "--port", "0"], tmp_path, timeout_s=1.0)
-    assert hil_server.run(["--help"], ROOT, timeout_s=60).returncode == 0
+        hil_forked.run(["bus", "serve", "--port", "0"], tmp_path, timeout_s=1.0)
+    assert hil_forked.run(["--help"], ROOT, timeout_s=60).returncode == 0
