@@ -6,18 +6,15 @@ ran, nothing staged is left behind and the previous record is kept."""
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from tests.fuzz.cli import run_cli
+from tests.fuzz.hil_forkserver import Done, HilForkServer
 
 ROOT = Path(__file__).resolve().parents[3]
 PROFILE = ROOT / "dut_profiles" / "fertilizer-piecewise-pid-daemon.toml"
-HIL = [sys.executable, "-m", "hil"]
 #: two short tests on the inline bus: the second one's start is a boundary between scenarios
 SELECTION = "test_flow_step and (23 or 34)"
 PREVIOUS = {"schema": "agrihil.qualification/1", "run_id": "old", "verdict": "pass",
@@ -28,15 +25,16 @@ PHASES = ("qualify:built", "qualify:staged", "qualify:suites", "qualify:test@1",
           "qualify:test@2", "qualify:record", "qualify:promote")
 
 
-def _qualify(out: Path, env: dict[str, str]) -> subprocess.CompletedProcess[str]:
+def _qualify(hil: HilForkServer, out: Path, env: dict[str, str]) -> Done:
+    """``hil qualify`` with ``env`` in a process of its own (forked by the ``hil_forked``
+    server: the signal is its own, as in a new interpreter, without the start-up)."""
     out.mkdir(parents=True, exist_ok=True)
     (out / "record.json").write_text(json.dumps(PREVIOUS))
-    return subprocess.run([*HIL, "qualify", str(PROFILE), "--bus", "inline", "--quiet",
-                           "--out", str(out), "-k", SELECTION], cwd=ROOT, capture_output=True,
-                          text=True, timeout=300, env={**os.environ, **env})
+    return hil.run(["qualify", str(PROFILE), "--bus", "inline", "--quiet", "--out", str(out),
+                    "-k", SELECTION], ROOT, timeout_s=300, env=env)
 
 
-def _assert_not_lost(done: subprocess.CompletedProcess[str], out: Path) -> dict:
+def _assert_not_lost(done: Done, out: Path) -> dict:
     output = done.stdout + done.stderr
     assert done.returncode == 130, output[-3000:]
     assert "Traceback" not in output, output[-3000:]
@@ -51,9 +49,10 @@ def _assert_not_lost(done: subprocess.CompletedProcess[str], out: Path) -> dict:
 
 
 @pytest.mark.parametrize("at", PHASES)
-def test_a_sigint_at_each_phase_is_never_lost(tmp_path: Path, at: str) -> None:
+def test_a_sigint_at_each_phase_is_never_lost(tmp_path: Path, at: str,
+                                              hil_forked: HilForkServer) -> None:
     out = tmp_path / "q"
-    done = _qualify(out, {"HIL_TEST_SIGNAL_AT": at})
+    done = _qualify(hil_forked, out, {"HIL_TEST_SIGNAL_AT": at})
     record = _assert_not_lost(done, out)
     if at in BEFORE_OUT:
         assert record == PREVIOUS                 # --out untouched
@@ -66,8 +65,10 @@ def test_a_sigint_at_each_phase_is_never_lost(tmp_path: Path, at: str) -> None:
         assert gate.code == 2, gate.stdout + gate.stderr
 
 
-def test_a_swallowed_keyboard_interrupt_still_ends_interrupted(tmp_path: Path) -> None:
+def test_a_swallowed_keyboard_interrupt_still_ends_interrupted(
+        tmp_path: Path, hil_forked: HilForkServer) -> None:
     out = tmp_path / "q"
-    done = _qualify(out, {"PYTEST_PLUGINS": "tests.hil.reliability.swallowing_plugin"})
+    done = _qualify(hil_forked, out,
+                    {"PYTEST_PLUGINS": "tests.hil.reliability.swallowing_plugin"})
     _assert_not_lost(done, out)
     assert "interrupted" in done.stderr
