@@ -8,24 +8,23 @@ import contextlib
 import json
 import os
 import subprocess
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
+from tests.fuzz.hil_forkserver import Done, HilForkServer
 from tests.hil.reliability.conftest import dying_profile_text
 
 ROOT = Path(__file__).resolve().parents[3]
 PROFILE = ROOT / "dut_profiles" / "fertilizer-piecewise-pid-daemon.toml"
-HIL = [sys.executable, "-m", "hil"]
 PREVIOUS = {"schema": "agrihil.qualification/1", "run_id": "old", "verdict": "pass",
             "dut": {"name": "x"}, "measurements": []}
 
 
-def _hil(*argv: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([*HIL, *argv], cwd=ROOT, capture_output=True, text=True,
-                          timeout=300)
+def _hil(server: HilForkServer, *argv: str) -> Done:
+    """``python -m hil ARGV`` in a process of its own, forked by the ``hil_forked`` server."""
+    return server.run(list(argv), ROOT, timeout_s=300)
 
 
 def _previous(out: Path) -> None:
@@ -39,17 +38,20 @@ def _untouched(out: Path) -> None:
 
 
 @pytest.mark.parametrize("expression", ["step or (touch x", "and", "   "])
-def test_a_malformed_k_is_exit_2_naming_k(tmp_path: Path, expression: str) -> None:
+def test_a_malformed_k_is_exit_2_naming_k(tmp_path: Path, expression: str,
+                                          hil_forked: HilForkServer) -> None:
     out = tmp_path / "q"
     _previous(out)
-    done = _hil("qualify", str(PROFILE), "--bus", "inline", "--out", str(out), "-k", expression)
+    done = _hil(hil_forked, "qualify", str(PROFILE), "--bus", "inline", "--out", str(out),
+                "-k", expression)
     assert done.returncode == 2, done.stderr
     assert "[-k]" in done.stderr and "interrupted" not in done.stderr.lower()
     assert len(done.stderr.strip().splitlines()) == 1, done.stderr
     _untouched(out)
 
 
-def test_a_non_executable_dut_command_is_refused_up_front(tmp_path: Path) -> None:
+def test_a_non_executable_dut_command_is_refused_up_front(tmp_path: Path,
+                                                          hil_forked: HilForkServer) -> None:
     binary = tmp_path / "dut-fw"
     binary.write_text("#!/bin/sh\nexit 0\n")
     binary.chmod(0o644)                                       # chmod -x
@@ -58,7 +60,7 @@ def test_a_non_executable_dut_command_is_refused_up_front(tmp_path: Path) -> Non
         'command = ["{python}", ', f'command = ["{binary}", "--bus", "{{bus}}"] # ', 1))
     out = tmp_path / "q"
     _previous(out)
-    done = _hil("qualify", str(profile), "--out", str(out), "--suite", "fast")
+    done = _hil(hil_forked, "qualify", str(profile), "--out", str(out), "--suite", "fast")
     assert done.returncode == 2, done.stderr
     line = done.stderr.strip().splitlines()[-1]
     assert str(binary) in line and "launch.command" in line and "execut" in line, line
@@ -79,13 +81,14 @@ def _tiny_disk(where: Path, size: str = "300k") -> Iterator[Path]:
         subprocess.run(["umount", "-l", str(where)], check=False)
 
 
-def test_a_full_disk_names_the_path_and_cleans_the_staging(tmp_path: Path) -> None:
+def test_a_full_disk_names_the_path_and_cleans_the_staging(tmp_path: Path,
+                                                           hil_forked: HilForkServer) -> None:
     if os.geteuid() != 0:
         pytest.skip("mounting a 300 kB tmpfs as --out needs root")
     with _tiny_disk(tmp_path / "disk") as disk:
         out = disk / "q"
         _previous(out)
-        done = _hil("qualify", str(PROFILE), "--bus", "inline", "--suite", "fast",
+        done = _hil(hil_forked, "qualify", str(PROFILE), "--bus", "inline", "--suite", "fast",
                     "-k", "flow_step", "--quiet", "--out", str(out))
         assert done.returncode == 2, done.stderr
         line = done.stderr.strip().splitlines()[-1]
