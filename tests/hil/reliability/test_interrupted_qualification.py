@@ -20,6 +20,7 @@ import pytest
 
 from hil.gate import load_record
 from tests.fuzz.cli import Outcome, run_cli
+from tests.fuzz.hil_forkserver import HilForkServer
 
 ROOT = Path(__file__).resolve().parents[3]
 PROFILE = ROOT / "dut_profiles" / "fertilizer-piecewise-pid-daemon.toml"
@@ -108,14 +109,14 @@ def test_interrupt_at_any_moment_leaves_a_record_no_gate_passes(
     assert not [p for p in out.iterdir() if p.name.startswith(".")], list(out.iterdir())
 
 
-def test_a_finished_qualification_replaces_the_previous_one(tmp_path: Path) -> None:
+def test_a_finished_qualification_replaces_the_previous_one(tmp_path: Path,
+                                                            hil_forked: HilForkServer) -> None:
     out = tmp_path / "qual"
     _passing_record(out)
     (out / "runs").mkdir()
     (out / "runs" / "old-run").mkdir()
-    proc = subprocess.run([*HIL, "qualify", str(PROFILE), "--bus", "inline", "--out", str(out),
-                           "-k", "test_flow_step and 23"], cwd=ROOT, capture_output=True,
-                          text=True, timeout=300)
+    proc = hil_forked.run(["qualify", str(PROFILE), "--bus", "inline", "--out", str(out),
+                           "-k", "test_flow_step and 23"], ROOT, timeout_s=300)
     assert proc.returncode == 0, proc.stderr[-3000:]
     # the console: each measurement as it is judged, only this rig's suites (no SKIPPED lines
     # for the other rig), and the summary
