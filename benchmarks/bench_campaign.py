@@ -32,9 +32,12 @@ hands frames to a recorder without bus log files; the depth controller's drive P
 plain frames without the typed dataclasses, its centroid's inner loop; the rig's drive TPDOs
 framed by one ``struct`` of the drive's readers (``CanopenDevice.app_reader``); each EDS parsed
 once per process (``canopen_device.object_dictionary``). The fertilizer sample is unchanged
-(5.8-6.4 s, its measurements the same). Still the bulk of a depth sample: imports (~20 %: scipy,
-python-control and matplotlib through ``hil.metrics.step``), the controller under test (~20 %,
-its fuzzy inference ~8 %), the rig's devices and the drive's PDOs (~25 %), the plant (~8 %).
+(5.6-6.4 s, its measurements the same). Where a depth sample's CPU goes now (py-spy at
+500 Hz, one sample): imports 21 % (scipy.signal ~10 %, python-control with matplotlib ~6 %,
+through ``plant_emulators.sowing_depth.field`` and ``hil.metrics.step``), the controller under
+test 21 % (its fuzzy inference 7 %), the rig's sensor, tractor, terminal and GNSS devices 16 %,
+the runner's loop, barrier, bus and traces 14 %, the drive's CANopen node 12 %, the plant 8 %,
+pytest and the rest 8 %: no one part is a quarter of it.
 In this VM's environment (``PYTHONDONTWRITEBYTECODE=1``) a fresh interpreter also recompiles
 and re-rewrites (pytest) every agrihil module it imports: ~0.75 s of a sample.
 """
