@@ -66,6 +66,7 @@ LONGEST_FIRST = (
     "tests/test_suites_depth_discrimination.py",            # 3 x ~19 s, 4 x ~6 s
     f"{DOCS}[docs/guide/dut-profiles.md",                   # ~19 s, shared with 4 other units
     "tests/test_discrimination.py",                         # ~14 s, 4 x 4-8 s
+    "tests/test_discrimination_isobus.py",                  # ~12 s, 2 x ~4 s
     "tests/hil/campaign/test_fork_isolation.py",            # ~12 s, 2 x ~5 s
     f"{DOCS}[docs/guide/writing-a-fertilizer-controller.md",  # ~11 s
     # builds the browser tests' two qualifications (~10 s) for the other 10
