@@ -91,6 +91,10 @@ class BusCore:
         self._logger: can.Listener | None = None
         #: lines waiting for one write per client while a burst is processed (None: no burst)
         self._batch: dict[ClientSession, list[bytes]] | None = None
+        #: while one socket read's frames are offered: the moment the server read them (their
+        #: common ready time on a paced bus), and whether the wire must be pumped after them
+        self._arrival: float | None = None
+        self._pump_after_arrival = False
 
     def call_later(self, delay: float, callback: Callable[..., Any], *args: Any) -> Timer | None:
         """Run ``callback`` on the loop after ``delay`` s (not at all without a loop: tests)."""
@@ -169,15 +173,35 @@ class BusCore:
             else:
                 client.deliver_many(lines)
 
+    # arrivals -----------------------------------------------------------------------
+    def begin_arrival(self) -> bool:
+        """Frames submitted until :meth:`end_arrival` arrived together (one socket read).
+
+        On a paced bus they are ready at the same moment, the one the server read them at,
+        and contend for the wire together: none of them takes the wire before the others
+        are offered, however long the server takes over the read (a loaded host may pre-empt
+        it between two frames for longer than a frame's wire time). False if one is open.
+        """
+        if self._arrival is not None:
+            return False
+        self._arrival = time.monotonic()
+        return True
+
+    def end_arrival(self) -> None:
+        self._arrival = None
+        if self._pump_after_arrival:
+            self._pump_after_arrival = False
+            self._pump()
+
     # frames -------------------------------------------------------------------------
     def submit(self, sender: ClientSession | None, frame: Frame,
                channel: str | None = None) -> None:
         self.stats.frames_in += 1
         channel = channel or (sender.channel if sender else DEFAULT_CHANNEL) or DEFAULT_CHANNEL
-        now = time.monotonic()
         if self.arbiter is None:
-            self._transmit(sender, frame, channel, now)
+            self._transmit(sender, frame, channel, time.monotonic())
             return
+        now = self._arrival if self._arrival is not None else time.monotonic()
         accepted = self.arbiter.offer((sender, frame, channel), can_id=frame.can_id,
                                       extended=frame.extended, data=frame.data, ready=now,
                                       bits=ERROR_FRAME_BITS if frame.error else None)
@@ -186,6 +210,9 @@ class BusCore:
             if self.stats.tx_overflow == 1:
                 log.warning("software bus: transmit queue full at %d bit/s: frames are offered "
                             "faster than the wire carries them; dropping", self.bitrate)
+            return
+        if self._arrival is not None:
+            self._pump_after_arrival = True    # once the whole read is offered
             return
         self._pump()
 

@@ -99,10 +99,13 @@ class ClientSession:
         # same: nothing else runs on the loop in between. Measured: see BusCore.begin_batch.
         server = self.server
         outer = server.begin_batch()
+        arrival = server.begin_arrival()   # on a paced bus: ready together, as read
         try:
             for body in messages:
                 self._handle(body)
         finally:
+            if arrival:
+                server.end_arrival()
             if outer:
                 server.end_batch()
 
