@@ -3,7 +3,8 @@ must-fail depth profile (``dut_profiles/must_fail/sowing-depth-*.toml``) fails t
 measurements its defect breaks, and only there.
 
 Each case is ``hil qualify PROFILE --bus inline -k "depth_step or depth_faults"`` in a
-subprocess (the way the gate meets it), judged from its ``record.json``. The firmware
+process of its own (the way the gate meets it; forked from a server that imported ``hil``
+once: the ``hil_forked`` fixture), judged from its ``record.json``. The firmware
 reference needs the software bus and a host build (``slow``).
 """
 
@@ -11,14 +12,13 @@ from __future__ import annotations
 
 import json
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
 import pytest
 
 from hil.dut.profile import load_profile
+from tests.fuzz.hil_forkserver import Done, HilForkServer
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "dut_profiles" / "sowing-depth-fuzzy-pid-daemon.toml"
@@ -130,13 +130,13 @@ FAULT_EXPECTED: dict[str, tuple[tuple[str, ...], ...]] = {
 }
 
 
-def _qualify(profile: Path, out: Path, bus: str = "inline", timeout: float = 600,
-             selection: str = SELECTION, suite: str | None = None,
-             ) -> tuple[subprocess.CompletedProcess[str], dict[str, Any]]:
-    proc = subprocess.run(
-        [sys.executable, "-m", "hil", "qualify", str(profile), "--bus", bus, "--out", str(out),
-         "-k", selection, "--quiet", *(["--suite", suite] if suite else [])],
-        capture_output=True, text=True, cwd=ROOT, timeout=timeout)
+def _qualify(hil: HilForkServer, profile: Path, out: Path, bus: str = "inline",
+             timeout: float = 600, selection: str = SELECTION, suite: str | None = None,
+             ) -> tuple[Done, dict[str, Any]]:
+    """``hil qualify PROFILE`` in a process of its own, forked by ``hil`` (the ``hil_forked``
+    fixture: ``python -m hil`` without its start-up), and its record."""
+    proc = hil.run(["qualify", str(profile), "--bus", bus, "--out", str(out), "-k", selection,
+                    "--quiet", *(["--suite", suite] if suite else [])], ROOT, timeout_s=timeout)
     record_path = out / "record.json"
     assert record_path.exists(), proc.stdout + proc.stderr
     return proc, json.loads(record_path.read_text())
@@ -167,7 +167,7 @@ def _faults(record: dict[str, Any]) -> dict[tuple[str, str], dict[str, Any]]:
     return out
 
 
-def _assert_reference_passes(proc: subprocess.CompletedProcess[str],
+def _assert_reference_passes(proc: Done,
                              record: dict[str, Any]) -> None:
     assert proc.returncode == 0 and record["verdict"] == "pass", proc.stdout + proc.stderr
     got = _by_key(record)
@@ -202,8 +202,9 @@ def test_must_fail_profiles_carry_the_reference_limits() -> None:
         assert load_profile(path).limits == reference, path.name
 
 
-def test_reference_daemon_passes_the_depth_steps(tmp_path: Path) -> None:
-    proc, record = _qualify(REFERENCE, tmp_path / "q")
+def test_reference_daemon_passes_the_depth_steps(tmp_path: Path,
+                                                 hil_forked: HilForkServer) -> None:
+    proc, record = _qualify(hil_forked, REFERENCE, tmp_path / "q")
     _assert_reference_passes(proc, record)
 
 
@@ -219,8 +220,9 @@ FAST_SUBSET = {
 @pytest.mark.parametrize("name", [
     name if name in FAST_SUBSET else pytest.param(name, marks=pytest.mark.slow)
     for name in sorted(EXPECTED)])
-def test_must_fail_depth_profile_fails_on_its_defect(tmp_path: Path, name: str) -> None:
-    proc, record = _qualify(MUST_FAIL / f"{name}.toml", tmp_path / "q")
+def test_must_fail_depth_profile_fails_on_its_defect(tmp_path: Path, name: str,
+                                                     hil_forked: HilForkServer) -> None:
+    proc, record = _qualify(hil_forked, MUST_FAIL / f"{name}.toml", tmp_path / "q")
     assert proc.returncode == 1 and record["verdict"] == "fail", proc.stdout + proc.stderr
     got = _by_key(record)
     for (measurement, signal), allowed in EXPECTED[name].items():
@@ -245,15 +247,17 @@ def test_must_fail_depth_profile_fails_on_its_defect(tmp_path: Path, name: str) 
 
 @pytest.mark.slow
 @pytest.mark.skipif(shutil.which("cmake") is None, reason="the firmware build needs cmake")
-def test_reference_firmware_passes_the_depth_steps(tmp_path: Path) -> None:
-    proc, record = _qualify(FIRMWARE, tmp_path / "q", bus="softbus", timeout=1200)
+def test_reference_firmware_passes_the_depth_steps(tmp_path: Path,
+                                                   hil_forked: HilForkServer) -> None:
+    proc, record = _qualify(hil_forked, FIRMWARE, tmp_path / "q", bus="softbus", timeout=1200)
     _assert_reference_passes(proc, record)
 
 
-def test_inverted_polarity_fails_the_field(tmp_path: Path) -> None:
+def test_inverted_polarity_fails_the_field(tmp_path: Path, hil_forked: HilForkServer) -> None:
     """The field suite (fast: the 3-5 km/h band) on a controller that drives the roller the
     wrong way: the seeds lie at the shallow end stop."""
-    proc, record = _qualify(MUST_FAIL / "sowing-depth-inverted-polarity-daemon.toml",
+    proc, record = _qualify(hil_forked,
+                            MUST_FAIL / "sowing-depth-inverted-polarity-daemon.toml",
                             tmp_path / "q", selection="depth_field")
     outcomes = {m["name"]: m["outcome"] for m in record["measurements"]}
     for name in ("depth.field.mean", "depth.field.pass_rate", "depth.field.inlier_cv"):
@@ -264,25 +268,27 @@ def test_inverted_polarity_fails_the_field(tmp_path: Path) -> None:
     ("sowing-depth-no-fault-reset-daemon", "depth.fault.drive_recovery_time"),
     ("sowing-depth-holds-command-at-standstill-daemon", "depth.fault.speed_loss.rod_travel"),
 ])
-def test_robustness_suite_fails_its_defect(tmp_path: Path, name: str,
-                                           measurement: str) -> None:
-    proc, record = _qualify(MUST_FAIL / f"{name}.toml", tmp_path / "q",
+def test_robustness_suite_fails_its_defect(tmp_path: Path, name: str, measurement: str,
+                                           hil_forked: HilForkServer) -> None:
+    proc, record = _qualify(hil_forked, MUST_FAIL / f"{name}.toml", tmp_path / "q",
                             selection="depth_robustness")
     outcomes = {m["name"]: m["outcome"] for m in record["measurements"]}
     assert outcomes.get(measurement) == "fail", (outcomes, proc.stdout[-500:])
     assert all(v == "pass" for k, v in outcomes.items() if k != measurement), outcomes
 
 
-def test_reference_passes_the_robustness_suite(tmp_path: Path) -> None:
-    proc, record = _qualify(REFERENCE, tmp_path / "q", selection="depth_robustness")
+def test_reference_passes_the_robustness_suite(tmp_path: Path, hil_forked: HilForkServer) -> None:
+    proc, record = _qualify(hil_forked, REFERENCE, tmp_path / "q", selection="depth_robustness")
     assert record["measurements"] and all(
         m["outcome"] == "pass" for m in record["measurements"]), proc.stdout[-500:]
 
 
 @pytest.mark.slow
-def test_loaded_bus_suite_fails_inverted_polarity(tmp_path: Path) -> None:
+def test_loaded_bus_suite_fails_inverted_polarity(tmp_path: Path,
+                                                  hil_forked: HilForkServer) -> None:
     """The busload suite (real time, ~2 min) judges the field statistics like the field."""
-    proc, record = _qualify(MUST_FAIL / "sowing-depth-inverted-polarity-daemon.toml",
+    proc, record = _qualify(hil_forked,
+                            MUST_FAIL / "sowing-depth-inverted-polarity-daemon.toml",
                             tmp_path / "q", bus="softbus", selection="depth_busload",
                             timeout=900, suite="busload")
     assert [t["nodeid"] for t in record["tests"]], proc.stdout + proc.stderr
