@@ -84,13 +84,17 @@ def test_every_epoch_is_counted_written_overrun_dropped_or_late() -> None:
             gnss.emit(k * 0.1)
         gnss.emit(300.15)                           # one epoch late (300.0 skipped)
         counts = gnss.counts()
+        epoch_bytes = len("".join(gnss.receiver.epoch(0.0, 0.0, 1.0)).encode("ascii"))
     finally:
         gnss.close()
     assert counts["written"] > 0 and counts["dropped"] > 0
     assert counts["late"] == 1
     assert counts["written"] + counts["overrun"] + counts["dropped"] + counts["late"] == 3002
     assert 0 < counts["unread_bytes"] <= 4096 * 4
-    assert counts["written_after_loss"] == 0        # nobody read the port
+    # nobody read the port: what got through after the first loss is at most what the kernel
+    # moved from the pty's buffer into the line discipline's queue (N_TTY_BUF_SIZE, 4096
+    # bytes) when it got to it, late on a loaded host (seen: 20 epochs)
+    assert counts["written_after_loss"] * epoch_bytes <= 4096
     assert 0 < counts["first_loss_s"] < 300
     kinds = [kind for _, kind, _ in notes]
     assert kinds.count("gnss-dropped") == 1 and kinds.count("gnss-overrun") <= 1
