@@ -20,7 +20,7 @@ from collections.abc import Iterator
 import pytest
 
 from hil.softbus import SoftwareBus
-from tests.fuzz.hil_forkserver import HilForkServer
+from tests.helpers.hil_forkserver import HilForkServer
 
 
 @pytest.fixture
@@ -32,7 +32,7 @@ def softbus() -> Iterator[SoftwareBus]:
 @pytest.fixture(scope="session")
 def hil_forked(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HilForkServer]:
     """``python -m hil`` run in the repository, as processes forked from one server per worker
-    that imported ``hil`` once (tests/fuzz/hil_forkserver.py): a ``hil qualify`` costs ~1.7 s
+    that imported ``hil`` once (tests/helpers/hil_forkserver.py): a ``hil qualify`` costs ~1.7 s
     of CPU instead of ~3.4 s in a new interpreter (measured, 3 runs of one step test)."""
     with HilForkServer(tmp_path_factory.mktemp("hil-forked")) as server:
         yield server

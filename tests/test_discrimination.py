@@ -20,7 +20,7 @@ from typing import Any
 import pytest
 
 from hil.dut.profile import load_profile, must_fail_claims
-from tests.fuzz.hil_forkserver import Done, HilForkServer
+from tests.helpers.hil_forkserver import Done, HilForkServer
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "dut_profiles" / "fertilizer-piecewise-pid-daemon.toml"

@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from hil.dut.profile import load_profile, must_fail_claims
-from tests.fuzz.hil_forkserver import HilForkServer
+from tests.helpers.hil_forkserver import HilForkServer
 from tests.test_discrimination import _qualify
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -64,7 +64,7 @@ Where commands run, and the rules that adapt them (the only ones):
    it must still be running then (a background process that died is a failed example).
 8. **A ``hil`` line** (not ``hil bus serve``, which runs in the background) runs in a ``hil``
    process of its own forked from a server that has imported ``hil`` and its libraries once
-   (tests/fuzz/hil_forkserver.py): the same argv, cwd, environment and ``sys.argv``, exit
+   (tests/helpers/hil_forkserver.py): the same argv, cwd, environment and ``sys.argv``, exit
    status and output as the ``hil`` script gives, without ~0.45 s of interpreter start-up
    and imports per line (~50 lines in the default run).
 
@@ -111,7 +111,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.fuzz.hil_forkserver import HilForkServer, HilTimeout
+from tests.helpers.hil_forkserver import HilForkServer, HilTimeout
 from tests.helpers.session_shared import built_once
 
 REPO = Path(__file__).resolve().parents[1]

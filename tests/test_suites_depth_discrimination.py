@@ -18,7 +18,7 @@ from typing import Any
 import pytest
 
 from hil.dut.profile import load_profile
-from tests.fuzz.hil_forkserver import Done, HilForkServer
+from tests.helpers.hil_forkserver import Done, HilForkServer
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "dut_profiles" / "sowing-depth-fuzzy-pid-daemon.toml"

@@ -3,7 +3,7 @@ before anything runs.
 
 Each example is run as a separate ``hil`` process with a time limit (a refused option must not
 start a bus server that serves for ever or a qualification that runs for a minute), forked
-from a server that imported ``hil`` once (tests/fuzz/hil_forkserver.py: ~14 s of CPU for 30
+from a server that imported ``hil`` once (tests/helpers/hil_forkserver.py: ~14 s of CPU for 30
 examples as new interpreters, ~2 s forked). In the default run with 30 examples;
 ``AGRIHIL_FUZZ_CLI_EXAMPLES`` raises that. The loaders behind the files are fuzzed in
 test_fuzz_files.py.
@@ -21,7 +21,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tests.fuzz.cli_cases import ROOT, bad_argv
-from tests.fuzz.hil_forkserver import HilForkServer, HilTimeout
+from tests.helpers.hil_forkserver import HilForkServer, HilTimeout
 
 
 @settings(max_examples=int(os.environ.get("AGRIHIL_FUZZ_CLI_EXAMPLES", "30")))

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.fuzz.hil_forkserver import HilForkServer
+from tests.helpers.hil_forkserver import HilForkServer
 
 ROOT = Path(__file__).resolve().parents[3]
 

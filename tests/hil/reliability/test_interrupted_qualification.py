@@ -20,7 +20,7 @@ import pytest
 
 from hil.gate import load_record
 from tests.fuzz.cli import Outcome, run_cli
-from tests.fuzz.hil_forkserver import HilForkServer
+from tests.helpers.hil_forkserver import HilForkServer
 
 ROOT = Path(__file__).resolve().parents[3]
 PROFILE = ROOT / "dut_profiles" / "fertilizer-piecewise-pid-daemon.toml"

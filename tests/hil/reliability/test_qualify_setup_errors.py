@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.fuzz.hil_forkserver import Done, HilForkServer
+from tests.helpers.hil_forkserver import Done, HilForkServer
 from tests.hil.reliability.conftest import dying_profile_text
 
 ROOT = Path(__file__).resolve().parents[3]

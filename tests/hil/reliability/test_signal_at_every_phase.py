@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from tests.fuzz.cli import run_cli
-from tests.fuzz.hil_forkserver import Done, HilForkServer
+from tests.helpers.hil_forkserver import Done, HilForkServer
 
 ROOT = Path(__file__).resolve().parents[3]
 PROFILE = ROOT / "dut_profiles" / "fertilizer-piecewise-pid-daemon.toml"

@@ -126,7 +126,7 @@ class HilForkServer:
         hil = Path(sys.executable).with_name("hil")
         argv0, path0 = ((hil, hil.parent) if script else (ROOT / "hil" / "__main__.py", ROOT))
         self.proc = subprocess.Popen(
-            [sys.executable, "-c", "import sys; from tests.fuzz.hil_forkserver import serve; "
+            [sys.executable, "-c", "import sys; from tests.helpers.hil_forkserver import serve; "
              "serve(*sys.argv[1:])", str(argv0), str(path0)],
             cwd=ROOT, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, bufsize=0)
 
