@@ -82,7 +82,7 @@ def test_a_serve_that_cannot_start_leaves_out_as_it_was(tmp_path: Path) -> None:
 
 
 def _limit_file_size() -> None:
-    limit = 4 * 1024     # ~3 s of the tractor's frames in candump text
+    limit = 1024     # under a second of the tractor's frames in candump text
     resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
 
 
