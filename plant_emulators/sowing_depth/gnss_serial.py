@@ -22,7 +22,12 @@ loses epochs as it would behind a real receiver's UART, and every epoch is count
 * *first_loss_s* and *written_after_loss*: when the first epoch was overrun or dropped, and
   how many were written whole after it. None written after it means the line was never
   drained again: the DUT stopped reading (or never read: a DUT that does not use the GNSS);
-  some written after it means the DUT reads, too slowly.
+  some written after it means the DUT reads, too slowly;
+* *bytes_after_loss*: the bytes the line took after the first loss (whole epochs and the part
+  of an overrun one). A line nobody reads still takes up to :data:`LINE_QUEUE_BYTES` after it:
+  the kernel moves what the pty's own buffer holds into the line discipline's queue when it
+  gets to it (late on a loaded host), which makes room without any reader. More than that
+  after the loss means the DUT read.
 
 A DUT that opens the port late first reads what was buffered: call
 :meth:`PtySerialPort.discard_unread` before the DUT starts if that matters.
@@ -57,7 +62,11 @@ from typing import Protocol
 from hil.errors import HilError
 from plant_emulators.sowing_depth.nmea import GnssReceiver
 
-__all__ = ["GnssSerialPort", "Kinematics", "PtySerialPort", "SerialPortError"]
+__all__ = ["LINE_QUEUE_BYTES", "GnssSerialPort", "Kinematics", "PtySerialPort", "SerialPortError"]
+
+#: what a pty's line discipline queues for the reader (Linux N_TTY_BUF_SIZE): at most this
+#: much reaches a port nobody reads after the writer first found it full
+LINE_QUEUE_BYTES = 4096
 
 #: a run-record note: (time s, kind, detail)
 Note = Callable[[float, str, str], None]
@@ -174,6 +183,8 @@ class GnssSerialPort:
         #: time of the first overrun or dropped epoch, and epochs written whole after it
         self.first_loss_s: float | None = None
         self.written_after_loss = 0
+        #: bytes the line took after the first loss
+        self.bytes_after_loss = 0
 
     @property
     def path(self) -> str:
@@ -199,6 +210,8 @@ class GnssSerialPort:
         sentences = self.receiver.epoch(epoch_time, src.distance_m, src.ground_speed_mps)
         data = "".join(sentences).encode("ascii")
         written = self.port.write_some(data)
+        if self.first_loss_s is not None:
+            self.bytes_after_loss += written
         if written == len(data):
             self.sent_epochs += 1
             if self.first_loss_s is not None:
@@ -227,7 +240,8 @@ class GnssSerialPort:
                 "unread_bytes": self.port.unread_bytes(),
                 "first_loss_s": None if self.first_loss_s is None
                 else round(self.first_loss_s, 3),
-                "written_after_loss": self.written_after_loss}
+                "written_after_loss": self.written_after_loss,
+                "bytes_after_loss": self.bytes_after_loss}
 
     def close(self) -> None:
         """Close the pseudo-terminal."""
