@@ -51,6 +51,13 @@ if [[ "${1:-}" == "--guest-init" ]]; then
     # point is on the guest's fresh tmpfs, so create it first)
     mkdir -p "$results" 2>/dev/null || true
     mount -t hostfs none "$results" -o "$results"
+    # reached through a symlink, the checkout's own path is under /tmp too (a clone there):
+    # the venv names that path (its activate script, its scripts' #! lines), so mount it as well
+    physical="$(cat "$results/root" 2>/dev/null || true)"
+    if [[ -n "$physical" && "$physical" != "$ROOT" && "$physical" == /tmp/* ]]; then
+        mkdir -p "$physical"
+        mount -r -t hostfs none "$physical" -o "$physical"
+    fi
     exec >>"$results/guest.log" 2>&1
     kver="$(uname -r)"
     mods="/usr/lib/uml/modules/$kver"
@@ -175,6 +182,7 @@ for dir in "$results" "$cache"; do
 done
 rm -f "$results/exit_status" "$results/guest.log"
 printf '%q ' "$@" > "$results/job"
+(cd "$ROOT" && pwd -P) > "$results/root"   # the checkout's own path, for the guest
 echo >> "$results/job"
 : > "$results/guest.log"
 
