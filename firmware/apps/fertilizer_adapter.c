@@ -192,19 +192,8 @@ size_t fert_step(fert_adapter_t *a, double now_s, hal_can_frame_t out[FERT_MAX_O
         r->reported = false;
     }
     xrow_step(&a->xrow, FERT_ROWS, flows, passed, excluded);
-    double sum = 0.0;
-    int valid = 0;
-    bool fresh_valid = false;
-    for (int i = 0; i < FERT_ROWS; i++) {
-        if (passed[i] && !excluded[i]) {
-            sum += flows[i];
-            valid++;
-            fresh_valid = fresh_valid || reported[i];
-        }
-    }
-    info->has_measurement = valid > 0;
-    info->measured_gps = valid > 0 ? sum / (double)valid : 0.0;
-    info->new_report = fresh_valid;
+    info->has_measurement = xrow_kept_mean(FERT_ROWS, flows, passed, excluded, reported,
+                                           &info->measured_gps, &info->new_report);
 
     int mode = a->setpoint.seen ? a->setpoint.mode : 1;
     if (mode != a->active_mode) {
@@ -218,7 +207,7 @@ size_t fert_step(fert_adapter_t *a, double now_s, hal_can_frame_t out[FERT_MAX_O
     info->out = ppid_step(&params, &a->core, q, info->measured_gps, info->has_measurement,
                           info->new_report);
     info->sensor_fault = a->setpoint.seen && a->setpoint.enable && law != PPID_LAW_OPEN_LOOP &&
-                         valid == 0;
+                         !info->has_measurement;
 
     size_t n = 0;
 

@@ -289,19 +289,8 @@ static void measure(rc400_adapter_t *a, double target, rc400_step_info_t *info)
         r->fresh = false;
     }
     xrow_step(&a->xrow, RC400_ROWS, flows, passed, excluded);
-    double sum = 0.0;
-    int valid = 0;
-    bool fresh = false;
-    for (int i = 0; i < RC400_ROWS; i++) {
-        if (passed[i] && !excluded[i]) {
-            sum += flows[i];
-            valid++;
-            fresh = fresh || fresh_row[i];
-        }
-    }
-    info->has_measurement = valid > 0;
-    info->measured_gps = valid > 0 ? sum / (double)valid : 0.0;
-    info->new_report = fresh;
+    info->has_measurement = xrow_kept_mean(RC400_ROWS, flows, passed, excluded, fresh_row,
+                                           &info->measured_gps, &info->new_report);
 }
 
 static uint16_t millivolts(double volts)

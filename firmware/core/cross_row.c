@@ -65,3 +65,21 @@ void xrow_step(xrow_state_t *s, int n, const double flow_gps[], const bool passe
         excluded[i] = s->out[i];
     }
 }
+
+bool xrow_kept_mean(int n, const double flow_gps[], const bool passed[], const bool excluded[],
+                    const bool fresh[], double *mean_gps, bool *any_fresh)
+{
+    double sum = 0.0;
+    int kept = 0;
+    bool new_report = false;
+    for (int i = 0; i < n; i++) {
+        if (passed[i] && !excluded[i]) {
+            sum += flow_gps[i];
+            kept++;
+            new_report = new_report || fresh[i];
+        }
+    }
+    *mean_gps = kept > 0 ? sum / (double)kept : 0.0;
+    *any_fresh = new_report;
+    return kept > 0;
+}

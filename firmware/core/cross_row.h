@@ -44,4 +44,10 @@ void xrow_init(xrow_state_t *s, double period_s);
 void xrow_step(xrow_state_t *s, int n, const double flow_gps[], const bool passed[],
                bool excluded[]);
 
+/* The measured flow over rows 0..n-1: the mean of the rows that passed and were not left out
+ * (summed in row order, as the Python build's FlowRows.measure), 0 when none; *any_fresh
+ * whether one of them reported since the last step. Returns whether any row counted. */
+bool xrow_kept_mean(int n, const double flow_gps[], const bool passed[], const bool excluded[],
+                    const bool fresh[], double *mean_gps, bool *any_fresh);
+
 #endif
