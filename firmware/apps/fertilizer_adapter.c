@@ -16,13 +16,21 @@ void fert_config_defaults(fert_config_t *cfg, ppid_law_t law)
     ppid_defaults(&cfg->core, law);
     cfg->stale_after_s = 2.5;
     cfg->period_s = 0.1;
+    cfg->ground_speed_first_s = 0.3;
 }
 
-size_t fert_param_refs(fert_config_t *cfg, param_ref_t refs[FERT_PARAM_COUNT])
+size_t fert_common_param_refs(fert_config_t *cfg, param_ref_t refs[FERT_COMMON_PARAM_COUNT])
 {
     size_t n = ppid_param_refs(&cfg->core, refs);
     refs[n++] = (param_ref_t){"stale_after_s", &cfg->stale_after_s};
     refs[n++] = (param_ref_t){"period_s", &cfg->period_s};
+    return n;
+}
+
+size_t fert_param_refs(fert_config_t *cfg, param_ref_t refs[FERT_PARAM_COUNT])
+{
+    size_t n = fert_common_param_refs(cfg, refs);
+    refs[n++] = (param_ref_t){"ground_speed_first_s", &cfg->ground_speed_first_s};
     return n;
 }
 
@@ -70,11 +78,21 @@ static void on_flow(fert_adapter_t *a, int row, const hal_can_frame_t *f, double
     r->reported = true;
 }
 
-static void on_speed(fert_adapter_t *a, int source, uint16_t raw, double value)
+static void on_speed(fert_adapter_t *a, int source, uint16_t raw, double value, double now_s)
 {
     /* J1939 error / not available decode above the valid range: no speed */
     bool valid = !(source > 0 && raw > J1939_SPEED_MAX_RAW);
     a->speed[source] = (fert_speed_t){valid, valid ? value : 0.0};
+    if (source == 2) {
+        a->ground_at_s = now_s;
+    }
+}
+
+/* speeds.py GroundSpeedFirst.fresh: a valid PGN 65097 speed heard within ground_speed_first_s */
+static bool ground_fresh(const fert_adapter_t *a, double now_s)
+{
+    return a->cfg.ground_speed_first_s > 0.0 && a->speed[2].seen &&
+           now_s - a->ground_at_s <= a->cfg.ground_speed_first_s + STALE_SLACK_S;
 }
 
 void fert_on_frame(fert_adapter_t *a, const hal_can_frame_t *f, double now_s)
@@ -85,14 +103,14 @@ void fert_on_frame(fert_adapter_t *a, const hal_can_frame_t *f, double now_s)
             if (fertilizer_wheel_based_speed_dist_unpack(&m, f->data, f->len) >= 0) {
                 on_speed(a, 1, m.wheel_based_machine_speed,
                          fertilizer_wheel_based_speed_dist_wheel_based_machine_speed_decode(
-                             m.wheel_based_machine_speed));
+                             m.wheel_based_machine_speed), now_s);
             }
         } else if (f->id == FERTILIZER_GROUND_BASED_SPEED_DIST_FRAME_ID) {
             struct fertilizer_ground_based_speed_dist_t m;
             if (fertilizer_ground_based_speed_dist_unpack(&m, f->data, f->len) >= 0) {
                 on_speed(a, 2, m.ground_based_machine_speed,
                          fertilizer_ground_based_speed_dist_ground_based_machine_speed_decode(
-                             m.ground_based_machine_speed));
+                             m.ground_based_machine_speed), now_s);
             }
         }
         return;
@@ -124,7 +142,7 @@ void fert_on_frame(fert_adapter_t *a, const hal_can_frame_t *f, double now_s)
         struct fertilizer_ground_wheel_speed_t m;
         if (fertilizer_ground_wheel_speed_unpack(&m, f->data, f->len) >= 0) {
             on_speed(a, 0, m.wheel_speed,
-                     fertilizer_ground_wheel_speed_wheel_speed_decode(m.wheel_speed));
+                     fertilizer_ground_wheel_speed_wheel_speed_decode(m.wheel_speed), now_s);
         }
         break;
     }
@@ -134,7 +152,7 @@ void fert_on_frame(fert_adapter_t *a, const hal_can_frame_t *f, double now_s)
 }
 
 /* Per-row target flow (g/s) from the setpoint, 0 when disabled or not computable. */
-static double target_gps(const fert_adapter_t *a)
+static double target_gps(const fert_adapter_t *a, double now_s)
 {
     const fert_setpoint_t *s = &a->setpoint;
     if (!s->seen || !s->enable) {
@@ -145,7 +163,7 @@ static double target_gps(const fert_adapter_t *a)
         if (s->speed_source > 2) {
             return 0.0;
         }
-        const fert_speed_t *v = &a->speed[s->speed_source];
+        const fert_speed_t *v = ground_fresh(a, now_s) ? &a->speed[2] : &a->speed[s->speed_source];
         if (!v->seen) {
             return 0.0;
         }
@@ -169,7 +187,7 @@ size_t fert_step(fert_adapter_t *a, double now_s, hal_can_frame_t out[FERT_MAX_O
 {
     fert_step_info_t *info = &a->last;
     memset(info, 0, sizeof *info);
-    double q = target_gps(a);
+    double q = target_gps(a, now_s);
     info->target_gps = q;
 
     /* valid rows: baseline acquired, in range, fresh, plausible (Flow <= 3 Q + 5), and in

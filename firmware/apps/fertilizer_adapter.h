@@ -12,7 +12,10 @@
  * A valid row that disagrees with the other valid rows is left out of the mean (the cross-row
  * check, core/cross_row.h). Terminal mode 2 (constant speed) runs the open-loop law whatever
  * the law; a change of terminal mode resets the closed-loop core (as the Python build does).
- * Ground speeds are held until the next frame (no time-out); a J1939 "not available" speed counts as 0. */
+ * Ground speeds are held until the next frame (no time-out); a J1939 "not available" speed counts as 0.
+ * In field mode a valid ground-based speed (PGN 65097) heard within ground_speed_first_s is used
+ * whatever SpeedSource names: the wheels read through slip and skid, a radar does not
+ * (reference_controllers/fertilizer/speeds.py; 0 obeys SpeedSource alone). */
 #ifndef AGRIHIL_FERTILIZER_ADAPTER_H
 #define AGRIHIL_FERTILIZER_ADAPTER_H
 
@@ -26,13 +29,16 @@
 
 #define FERT_ROWS 4
 #define FERT_MAX_OUT 4 /* frames a step can produce */
-#define FERT_PARAM_COUNT (PPID_PARAM_COUNT + 2)
+#define FERT_COMMON_PARAM_COUNT (PPID_PARAM_COUNT + 2)
+#define FERT_PARAM_COUNT (FERT_COMMON_PARAM_COUNT + 1)
 
 typedef struct {
     ppid_params_t core;   /* law and gains */
     double stale_after_s; /* a flow report older than this is invalid (2.5 s) */
     double period_s;      /* control period (0.1 s): the adapter clock advances by it per
                            * step in lockstep */
+    double ground_speed_first_s; /* field mode: a PGN 65097 speed this fresh is used before
+                                  * SpeedSource's (0.3 s; 0: SpeedSource alone) */
 } fert_config_t;
 
 typedef struct {
@@ -79,6 +85,7 @@ typedef struct {
     fert_row_t rows[FERT_ROWS];
     xrow_state_t xrow; /* cross-row plausibility of the rows' reports */
     fert_speed_t speed[3]; /* by SpeedSource */
+    double ground_at_s;    /* when the last valid ground-based speed arrived */
     uint32_t steps;
     fert_step_info_t last;
     /* FertSetpoint.ActiveRows = N: only rows 1..N's modules count (the others' clutches are
@@ -89,7 +96,9 @@ typedef struct {
 void fert_config_defaults(fert_config_t *cfg, ppid_law_t law);
 
 /* Named parameters, the Python build's names: the core's (see ppid_param_refs, which depend on
- * the law) plus stale_after_s and period_s. Set the law before calling. */
+ * the law) plus stale_after_s and period_s (what the ISOBUS implement shares), and
+ * ground_speed_first_s (the terminal mode's alone). Set the law before calling. */
+size_t fert_common_param_refs(fert_config_t *cfg, param_ref_t refs[FERT_COMMON_PARAM_COUNT]);
 size_t fert_param_refs(fert_config_t *cfg, param_ref_t refs[FERT_PARAM_COUNT]);
 
 void fert_init(fert_adapter_t *a, const fert_config_t *cfg);

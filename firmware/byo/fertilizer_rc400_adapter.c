@@ -31,6 +31,7 @@ void rc400_config_defaults(rc400_config_t *cfg, ppid_law_t law)
     ppid_defaults(&cfg->core, law);
     cfg->stale_after_s = 2.5;
     cfg->period_s = 0.1;
+    cfg->ground_speed_first_s = 0.3;
 }
 
 size_t rc400_param_refs(rc400_config_t *cfg, param_ref_t refs[RC400_PARAM_COUNT])
@@ -38,6 +39,7 @@ size_t rc400_param_refs(rc400_config_t *cfg, param_ref_t refs[RC400_PARAM_COUNT]
     size_t n = ppid_param_refs(&cfg->core, refs);
     refs[n++] = (param_ref_t){"stale_after_s", &cfg->stale_after_s};
     refs[n++] = (param_ref_t){"period_s", &cfg->period_s};
+    refs[n++] = (param_ref_t){"ground_speed_first_s", &cfg->ground_speed_first_s};
     return n;
 }
 
@@ -98,7 +100,20 @@ static uint32_t pgn_of(uint32_t id)
 
 static void set_speed(rc400_adapter_t *a, int source, double mps)
 {
-    a->speed_mps[source] = (mps >= 0.0 && mps <= MAX_VALID_SPEED_MPS) ? mps : 0.0;
+    bool valid = mps >= 0.0 && mps <= MAX_VALID_SPEED_MPS;
+    a->speed_mps[source] = valid ? mps : 0.0;
+    if (source == SPEED_GROUND) {
+        a->ground_heard = valid;
+        a->ground_at_step = a->steps;
+    }
+}
+
+/* speeds.py GroundSpeedFirst.fresh: a valid radar speed heard within ground_speed_first_s */
+static bool ground_fresh(const rc400_adapter_t *a)
+{
+    return a->cfg.ground_speed_first_s > 0.0 && a->ground_heard &&
+           (double)(a->steps - a->ground_at_step) <=
+               a->cfg.ground_speed_first_s / a->cfg.period_s + STALE_SLACK_STEPS;
 }
 
 /* One row of RH_RowFlow: the multiplexer selects which row's signals the frame carries. */
@@ -248,7 +263,8 @@ double rc400_target_gps(const rc400_adapter_t *a)
     const struct ratemaster_rc400_rc_command_t *s = &a->setpoint;
     if (rc400_mode(a) == RC400_MODE_FIELD) { /* eq. (1) Q = 0.1 M D v, shared by the rows */
         int source = speed_source(s->speed_src);
-        double speed = source == SPEED_NONE ? 0.0 : a->speed_mps[source];
+        double speed = source == SPEED_NONE ? 0.0
+                       : a->speed_mps[ground_fresh(a) ? SPEED_GROUND : source];
         double rows = s->sections > 1u ? (double)s->sections : 1.0;
         double rate = ratemaster_rc400_rc_command_rate_kg_ha_decode(s->rate_kg_ha) *
                       KGHA_TO_KGHA;

@@ -45,12 +45,14 @@
 #define RC400_ROWS 4
 #define RC400_MAX_OUT 3   /* frames a step produces at most */
 #define RC400_BOOT_FRAMES 2
-#define RC400_PARAM_COUNT (PPID_PARAM_COUNT + 2)
+#define RC400_PARAM_COUNT (PPID_PARAM_COUNT + 3)
 
 typedef struct {
     ppid_params_t core;   /* law and gains */
     double stale_after_s; /* a row report older than this is invalid (2.5 s) */
     double period_s;      /* control period (0.1 s): ages are counted in steps of it */
+    double ground_speed_first_s; /* field: a Radar speed (PGN 65097) this fresh is used before
+                                  * SpeedSrc's (0.3 s; 0: SpeedSrc alone; speeds.py) */
 } rc400_config_t;
 
 /* The law's modes, which the RC-400's programs select. */
@@ -86,6 +88,8 @@ typedef struct {
     rc400_row_t rows[RC400_ROWS];
     xrow_state_t xrow; /* cross-row plausibility of the rows' reports */
     double speed_mps[3]; /* ground wheel, tractor wheel-based, radar */
+    bool ground_heard;       /* the last radar speed was valid */
+    uint32_t ground_at_step; /* the step count when it arrived */
     uint32_t steps;
     rc400_step_info_t last;
 } rc400_adapter_t;
@@ -93,7 +97,7 @@ typedef struct {
 void rc400_config_defaults(rc400_config_t *cfg, ppid_law_t law);
 
 /* Named parameters, the Python build's names: the core's (which depend on the law: set it
- * first) plus stale_after_s and period_s. */
+ * first) plus stale_after_s, period_s and ground_speed_first_s. */
 size_t rc400_param_refs(rc400_config_t *cfg, param_ref_t refs[RC400_PARAM_COUNT]);
 
 void rc400_init(rc400_adapter_t *a, const rc400_config_t *cfg);

@@ -31,7 +31,8 @@ void iso_fert_config_defaults(iso_fert_config_t *cfg, ppid_law_t law)
 
 size_t iso_fert_param_refs(iso_fert_config_t *cfg, param_ref_t refs[ISO_FERT_PARAM_COUNT])
 {
-    size_t n = fert_param_refs(&cfg->fert, refs);
+    /* not ground_speed_first_s: the implement always prefers PGN 65097 (iso_fert_ground_speed) */
+    size_t n = fert_common_param_refs(&cfg->fert, refs);
     refs[n++] = (param_ref_t){"address", &cfg->address};
     refs[n++] = (param_ref_t){"identity_number", &cfg->identity_number};
     refs[n++] = (param_ref_t){"width_m", &cfg->width_m};

@@ -35,7 +35,7 @@
 #include "iso_tc.h"
 
 #define ISO_FERT_MAX_OUT (ISO_NET_MAX_OUT + FERT_MAX_OUT)
-#define ISO_FERT_PARAM_COUNT (FERT_PARAM_COUNT + 3)
+#define ISO_FERT_PARAM_COUNT (FERT_COMMON_PARAM_COUNT + 3)
 #define ISO_FERT_LATENCY_MS 430 /* the rig's meter-to-furrow delay, 0.08 s + 0.35 s (the
                                  * Python takes it from the rig configuration) */
 #define ISO_FERT_SPEED_TIMEOUT_S 0.3

@@ -199,11 +199,18 @@ static void test_param_names(void)
     CHECK(param_set(refs, n, "shaft_rpm_per_v", "5") == PARAM_OK);
     CHECK(param_set(refs, n, "stale_after_s", "3") == PARAM_OK && cfg.stale_after_s == 3.0);
     CHECK(param_set(refs, n, "period_s", "0.05") == PARAM_OK && cfg.period_s == 0.05);
+    CHECK(param_set(refs, n, "ground_speed_first_s", "0") == PARAM_OK &&
+          cfg.ground_speed_first_s == 0.0);
     CHECK(param_set(refs, n, "ki1", "0.5") == PARAM_OK);
+    /* the ISOBUS implement's share leaves the terminal-only key out */
+    param_ref_t common[FERT_COMMON_PARAM_COUNT];
+    size_t nc = fert_common_param_refs(&cfg, common);
+    CHECK_INT(nc, FERT_COMMON_PARAM_COUNT);
+    CHECK(param_set(common, nc, "ground_speed_first_s", "0") == PARAM_UNKNOWN);
     /* the open-loop law takes only the feedforward keys (and the adapter's) */
     fert_config_defaults(&cfg, PPID_LAW_OPEN_LOOP);
     n = fert_param_refs(&cfg, refs);
-    CHECK_INT(n, 7);
+    CHECK_INT(n, 8);
     CHECK(param_set(refs, n, "ki1", "0.5") == PARAM_UNKNOWN);
     CHECK(param_set(refs, n, "v_max", "8") == PARAM_OK);
     CHECK(param_set(refs, n, "ff_linear_below_rpm", "4") == PARAM_OK
@@ -238,6 +245,37 @@ static void test_field_target(void)
     CHECK_NEAR(a.last.target_gps, 0.0, 0);
 }
 
+/* A fresh ground-based speed is used whatever SpeedSource names; the terminal's source once it
+ * is older than ground_speed_first_s, or not available; 0 s obeys SpeedSource alone. */
+static void test_ground_speed_first(void)
+{
+    hal_can_frame_t out[FERT_MAX_OUT];
+    const double q_per_mps = 0.1 * 200.0 * 3.0 / 4.0;
+    for (int first = 1; first >= 0; first--) {
+        start(PPID_LAW_PHYSICAL);
+        a.cfg.ground_speed_first_s = first ? 0.3 : 0.0;
+        hal_can_frame_t sp = setpoint(0, true, 0, 200.0, 3.0, 0, 4); /* Hall wheel */
+        fert_on_frame(&a, &sp, 0.0);
+        hal_can_frame_t h = hall(1.5);
+        fert_on_frame(&a, &h, 0.0);
+        hal_can_frame_t g = gbsd(1450); /* 1.45 m/s: the wheel reads 3.4 % fast */
+        fert_on_frame(&a, &g, 0.0);
+        fert_step(&a, 0.0, out);
+        CHECK_NEAR(a.last.target_gps, q_per_mps * (first ? 1.45 : 1.5), 1e-9);
+        fert_step(&a, 0.3, out); /* 0.3 s old: still fresh */
+        CHECK_NEAR(a.last.target_gps, q_per_mps * (first ? 1.45 : 1.5), 1e-9);
+        fert_step(&a, 0.4, out); /* older: the terminal's source again */
+        CHECK_NEAR(a.last.target_gps, q_per_mps * 1.5, 1e-9);
+        fert_on_frame(&a, &g, 0.4);
+        fert_step(&a, 0.4, out);
+        CHECK_NEAR(a.last.target_gps, q_per_mps * (first ? 1.45 : 1.5), 1e-9);
+        g = gbsd(0xFFFF); /* not available: not a speed to prefer */
+        fert_on_frame(&a, &g, 0.5);
+        fert_step(&a, 0.5, out);
+        CHECK_NEAR(a.last.target_gps, q_per_mps * 1.5, 1e-9);
+    }
+}
+
 static void test_constant_speed_mode_is_open_loop(void)
 {
     start(PPID_LAW_PHYSICAL);
@@ -270,5 +308,5 @@ static void test_paper_literal_starts_at_zero(void)
 }
 
 TEST_MAIN("fertilizer_adapter", test_idle_frames, test_bench_feedforward, test_row_validity,
-          test_field_target, test_constant_speed_mode_is_open_loop,
+          test_field_target, test_ground_speed_first, test_constant_speed_mode_is_open_loop,
           test_paper_literal_starts_at_zero, test_mode_change_resets, test_param_names)

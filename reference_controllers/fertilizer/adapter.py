@@ -39,30 +39,34 @@ from reference_controllers.fertilizer.piecewise_pid import (
     PiecewisePidParams,
 )
 from reference_controllers.fertilizer.rows import FlowRows
+from reference_controllers.fertilizer.speeds import SPEED_SOURCES, GroundSpeedFirst, valid_speed
 from reference_controllers.params import ParamError, ParamValue, field_names, override, split
 
 LAWS = ("physical", "paper-literal", "open-loop")
 MODE_FIELD, MODE_BENCH, MODE_CONSTANT = 0, 1, 2
-SPEED_SOURCES = ("hall", "wheel", "ground")
 SYNC_ID = 0x080
-#: J1939 "not available" speeds decode above the signal's valid maximum
-MAX_VALID_SPEED_MPS = 64.255
 STATUS_EVERY = 10
 OPEN_LOOP_KEYS = ("ff_coeff", "ff_exponent", "shaft_rpm_per_v", "v_max", "ff_linear_below_rpm")
 
 
 @dataclass(frozen=True)
 class FlowAdapterParams:
-    """The adapter's own parameters: report staleness and the control period (s)."""
+    """The adapter's own parameters: report staleness, the control period and how fresh a
+    ground-based speed must be to be used before the terminal's source (s; 0: the terminal's
+    source alone; :mod:`reference_controllers.fertilizer.speeds`)."""
 
     stale_after_s: float = 2.5
     period_s: float = 0.1
+    ground_speed_first_s: float = 0.3
 
     def __post_init__(self) -> None:
         if not self.period_s > 0.0:
             raise ValueError(f"period_s must be > 0, got {self.period_s}")
         if not self.stale_after_s >= 0.0:
             raise ValueError(f"stale_after_s must be >= 0, got {self.stale_after_s}")
+        if not self.ground_speed_first_s >= 0.0:
+            raise ValueError(f"ground_speed_first_s must be >= 0, got "
+                             f"{self.ground_speed_first_s}")
 
 
 def resolve_params(law: str | None, params: Mapping[str, ParamValue] | None) -> tuple[
@@ -134,6 +138,8 @@ class FlowController(Controller):
         self.rows = FlowRows(self.adapter_params.stale_after_s, self.adapter_params.period_s)
         self.setpoint: dict[str, float] = {}
         self.speeds = {"hall": 0.0, "wheel": 0.0, "ground": 0.0}
+        self.ground_first = GroundSpeedFirst(self.adapter_params.ground_speed_first_s,
+                                             self.adapter_params.period_s)
         self.steps = 0
         self.active_mode: int | None = None
         self.volts = 0.0
@@ -172,7 +178,9 @@ class FlowController(Controller):
 
     def _speed(self, source: str, value: float) -> None:
         value = float(value)
-        self.speeds[source] = value if 0.0 <= value <= MAX_VALID_SPEED_MPS else 0.0
+        self.speeds[source] = value if valid_speed(value) else 0.0
+        if source == "ground":
+            self.ground_first.heard(value, self.steps)
 
     # --- the control step -----------------------------------------------------------------
     @property
@@ -190,7 +198,9 @@ class FlowController(Controller):
             return 0.0
         if self.terminal_mode == MODE_FIELD:
             source = int(sp.get("SpeedSource", 0))
-            speed = self.speeds[SPEED_SOURCES[source]] if source < len(SPEED_SOURCES) else 0.0
+            speed = self.ground_first.field_speed(
+                self.speeds, SPEED_SOURCES[source] if source < len(SPEED_SOURCES) else None,
+                self.steps)
             rows = max(1, int(sp.get("ActiveRows", 4)))
             return 0.1 * sp["TargetRate"] * sp["WorkingWidth"] * speed / rows
         return float(sp.get("TargetFlow", 0.0))

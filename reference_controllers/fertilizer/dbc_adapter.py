@@ -29,6 +29,7 @@ import cantools
 from hil.dut import Controller
 from reference_controllers.fertilizer.piecewise_pid import OpenLoop, PiecewisePid
 from reference_controllers.fertilizer.rows import FlowRows
+from reference_controllers.fertilizer.speeds import GroundSpeedFirst, valid_speed
 from reference_controllers.params import ParamError, ParamValue
 
 __all__ = ["RC400_DATABASE", "RC400_SIGNALS", "DbcFlowController", "SignalMap", "rc400"]
@@ -38,7 +39,6 @@ RC400_DATABASE = ROOT / "docs" / "examples" / "byo-fertilizer" / "ratemaster_rc4
 SYNC_ID = 0x080                        # CANopen SYNC: one control step each in lockstep
 SDO_RX = 0x600                         # CiA 301 SDO request to node n: 0x600 + n
 BOOT_UP, OPERATIONAL = 0, 5            # CiA 301 heartbeat states
-MAX_VALID_SPEED_MPS = 64.255           # J1939 "not available" decodes above it
 #: the control law's units, and each database unit's factor to them (value_law = value · f)
 TO_LAW_UNITS: dict[str, tuple[str, float]] = {
     "g/s": ("g/s", 1.0), "kg/h": ("g/s", 1.0 / 3.6), "m/s": ("m/s", 1.0),
@@ -46,7 +46,6 @@ TO_LAW_UNITS: dict[str, tuple[str, float]] = {
     "kg/ha": ("kg/ha", 1.0), "kg/hm2": ("kg/ha", 1.0), "V": ("V", 1.0), "mV": ("V", 0.001),
 }
 LAW_MODES = ("field", "bench", "constant")
-SPEED_SOURCES = ("hall", "wheel", "ground")
 
 
 @dataclass(frozen=True)
@@ -158,6 +157,8 @@ class DbcFlowController(Controller):
         self.rows = FlowRows(self.adapter_params.stale_after_s, self.adapter_params.period_s)
         self.setpoint: dict[str, Any] = {}
         self.speeds = {"hall": 0.0, "wheel": 0.0, "ground": 0.0}
+        self.ground_first = GroundSpeedFirst(self.adapter_params.ground_speed_first_s,
+                                             self.adapter_params.period_s)
         self.steps = 0
         self.active_mode: str | None = None
         self.volts = 0.0
@@ -239,7 +240,9 @@ class DbcFlowController(Controller):
         elif message.name in self._speed_of:
             source, signal = self._speed_of[message.name]
             speed = float(values[signal]) * self._law_factor(f"{message.name}.{signal}")
-            self.speeds[source] = speed if 0.0 <= speed <= MAX_VALID_SPEED_MPS else 0.0
+            self.speeds[source] = speed if valid_speed(speed) else 0.0
+            if source == "ground":
+                self.ground_first.heard(speed, self.steps)
 
     # --- the control step -----------------------------------------------------------------
     def _value(self, name: str) -> Any:
@@ -262,7 +265,7 @@ class DbcFlowController(Controller):
             return 0.0
         if self.program == "field":
             source = self.map.speed_sources.get(str(self._value(self.map.speed_source)))
-            speed = self.speeds[source] if source is not None else 0.0
+            speed = self.ground_first.field_speed(self.speeds, source, self.steps)
             rows = max(1, int(self._value(self.map.sections)))
             rate = float(self._value(self.map.target_rate)) * self._units["target_rate"]
             width = float(self._value(self.map.working_width)) * self._units["working_width"]

@@ -66,12 +66,12 @@ from hil.isobus.tc_client import TaskControllerClient
 from hil.isobus.tecu import PGN_GROUND_BASED_SPEED, PGN_WHEEL_BASED_SPEED, iso11783_7_database
 from plant_emulators.fertilizer.config import FertilizerRigConfig, load_rig_config
 from reference_controllers.fertilizer.adapter import (
-    MAX_VALID_SPEED_MPS,
     MODE_FIELD,
     SYNC_ID,
     FlowController,
 )
 from reference_controllers.fertilizer.rows import FlowRows, Measurement
+from reference_controllers.fertilizer.speeds import MAX_VALID_SPEED_MPS
 from reference_controllers.params import ParamError, ParamValue, field_names, override, split
 
 __all__ = ["SPEED_TIMEOUT_S", "IsobusFlowController", "IsobusParams", "implement_name",
@@ -329,6 +329,10 @@ class IsobusFlowController(FlowController):
         if (law or rest.get("mode")) == "open-loop":
             raise ParamError("the ISOBUS mode runs the closed-loop laws (physical, "
                              "paper-literal), not open-loop")
+        if "ground_speed_first_s" in rest:
+            raise ParamError("parameter 'ground_speed_first_s' is the terminal mode's: the "
+                             "ISOBUS mode always prefers PGN 65097 (choose with 'speed' and "
+                             "'speed_timeout_s')")
         config = rig_config or load_rig_config()
         super().__init__(law, rest, step_on_sync=step_on_sync, rig_config=config)
         self.name = f"{self.name}-isobus"
