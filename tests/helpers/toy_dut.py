@@ -6,7 +6,9 @@ usage: toy_dut.py BEHAVIOUR  (bus spec from AGRIHIL_BUS)
   crash-soon  boot-up, then exit 3 after 0.3 s, SYNC or not (a crash in real time)
   hang        boot-up, ignore SIGTERM, never answer
   silent      never sends anything (no boot-up)
-  flood       boot-up, then answer each SYNC with 500 frames
+  flood       boot-up, then answer each SYNC with 500 frames 0x3F0 before its 0x220 (the
+              step-end frame last, so in lockstep every one of them lands in the step it
+              answers, however the socket delivers them)
   child       boot-up, start a grandchild that sleeps forever, answer SYNC
 """
 
@@ -57,9 +59,11 @@ def main() -> int:
             return 3
         if behaviour == "hang":
             continue
-        n = 500 if behaviour == "flood" else 1
-        for _ in range(n):
-            bus.send(can.Message(arbitration_id=0x220, data=[0, 0, 0, 0], is_extended_id=False))
+        if behaviour == "flood":
+            for _ in range(500):
+                bus.send(can.Message(arbitration_id=0x3F0, data=[0, 0, 0, 0],
+                                     is_extended_id=False))
+        bus.send(can.Message(arbitration_id=0x220, data=[0, 0, 0, 0], is_extended_id=False))
     bus.shutdown()
     return 0
 
