@@ -98,6 +98,9 @@ def _sample_main(argv: list[str], log: str) -> None:
     import pytest
 
     code = pytest.main(argv)
+    from hil.rig import checkpoint
+
+    checkpoint.release_all()    # the runs' held copies end with the sample, waited for here
     sys.stdout.flush()
     sys.stderr.flush()
     sys.exit(int(code))

@@ -168,6 +168,23 @@ class Rig(ABC):
         """Release resources (serial ports, …)."""
         return None
 
+    def ready_to_hold(self) -> bool:
+        """Whether a copy of this process now would continue the run exactly.
+
+        True only when all of the rig's state is in the process or as :meth:`resume_held`
+        restores it: a run is held there for later runs with the same prefix
+        (:mod:`hil.rig.checkpoint`). False (the default): the rig is never held.
+        """
+        return False
+
+    def resume_held(self) -> None:
+        """In a copy resumed from a checkpoint: restore what lives outside the process.
+
+        As it was when :meth:`ready_to_hold` said True (an empty serial line, say); the
+        process's own state is the checkpoint's.
+        """
+        return None
+
     @classmethod
     def scenario_dir(cls) -> Path:
         """The directory of the rig's packaged scenarios (``*.toml``).

@@ -34,6 +34,7 @@ from hil.dut.inprocess import InProcessDut
 from hil.errors import BusError, ConfigError, StepTimeoutError
 from hil.record import Recorder, Verdict
 from hil.record.traces import load_traces, write_npz
+from hil.rig import checkpoint
 from hil.rig.base import Rig, RigContext
 from hil.rig.busload import BusLoad
 from hil.rig.device import Device
@@ -271,6 +272,11 @@ class _Loop:
         #: reconfigured event timer), and the earliest such tick waits in ``_rx_due``
         self._device_due: list[int] = []
         self._rx_due = math.inf
+        #: set by run_scenario: the run's prefix key (:mod:`hil.rig.checkpoint`), None when
+        #: it cannot be held
+        self.prefix_key: tuple[Any, ...] | None = None
+        #: in a copy resumed from a checkpoint: the run it continues as
+        self.resumed: checkpoint.Resume | None = None
 
     def _log(self, msg: can.Message, *, rx: bool) -> None:
         if self._logging:
@@ -448,11 +454,20 @@ class _Loop:
 
         dut_check_ticks = max(1, round(rig.control_period_s / dt))
         next_dut_check = dut_check_ticks
+        hold_tick = -1 if self.prefix_key is None else \
+            checkpoint.first_event_tick(scenario, dt, trace_ticks) or -1
         k = 0
         try:
             clock.start()
             while True:
                 t = k * dt
+                if k == hold_tick and rig.ready_to_hold():  # later runs may start here
+                    resume = checkpoint.hold(self.prefix_key or (), k)
+                    if resume is not None:      # this is such a later run now
+                        scenario = self._continue_as(resume)
+                        events = [(round(e.at_s / dt), e) for e in scenario.events]
+                        n_events, next_event = len(events), 0
+                        event_tick = events[0][0] if events else ticks_total
                 if event_tick <= k:
                     while next_event < n_events and events[next_event][0] <= k:
                         self._apply(events[next_event][1], t)
@@ -513,6 +528,25 @@ class _Loop:
                         next_dut_check = k + dut_check_ticks
         finally:
             self.rec.timing = self.clock.stop()
+
+    def _continue_as(self, resume: checkpoint.Resume) -> Scenario:
+        """In a copy resumed from a checkpoint: become the run ``resume`` asks for.
+
+        Its scenario (the same up to now but for name, description and later events), its
+        output directory, run id, start time and metadata; the state is the checkpoint's.
+        """
+        rec = self.rec
+        for key in self.options.extra_meta:
+            rec.meta.pop(key, None)
+        self.resumed, self.scenario, self.options = resume, resume.scenario, resume.options
+        self.rig.ctx.scenario = resume.scenario
+        self.rig.resume_held()
+        rec.out_dir = resume.options.out_dir
+        rec.out_dir.mkdir(parents=True, exist_ok=True)
+        rec.run_id, rec.started_at = uuid.uuid4().hex[:12], resume.started_at
+        rec.meta.update({"scenario": resume.scenario.name, **resume.options.extra_meta,
+                         "continued_from_checkpoint_s": self.clock.time_s})
+        return resume.scenario
 
     def _check_answering(self) -> None:
         """Real time: fail the run of a DUT whose command frames stopped for longer than the limit.
@@ -676,8 +710,32 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
         on a bus without a bit rate, the inline bus without lockstep or an in-process DUT).
     DutSetupError
         The DUT cannot be started at all.
+
+    Notes
+    -----
+    A run that starts as an earlier one of this process did (lockstep, inline, the
+    controller in process, measurements only) continues from that run's checkpoint at its
+    first event instead of from the start, with the same result (:mod:`hil.rig.checkpoint`).
     """
     check_run(scenario, options)
+    key = checkpoint.prefix_key(rig_cls, scenario, dut, options)
+    holder = checkpoint.holder_for(key, scenario, rig_cls.physics_period_s)
+    if holder is not None:
+        return checkpoint.resume(holder, scenario, options)
+    try:
+        result = _run_scenario(rig_cls, scenario, dut, options, key)
+    except BaseException as exc:
+        if checkpoint.resumed():    # a copy resumed from a checkpoint: the error goes back
+            checkpoint.finish(None, exc)
+        raise
+    if checkpoint.resumed():        # ...and so does its result; the copy ends there
+        checkpoint.finish(result)
+    return result
+
+
+def _run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
+                  options: RunOptions, key: tuple[Any, ...] | None) -> RunResult:
+    """:func:`run_scenario` from the start; ``key``: its prefix key, to hold it by."""
     seed = options.seed if options.seed is not None else scenario.seed
     run_id = uuid.uuid4().hex[:12]
     notes: list[dict[str, Any]] = []
@@ -768,6 +826,7 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
         stack.callback(lambda: rec.meta.__setitem__("dut", dut.stop()))
         loop = _Loop(rig, scenario, bus, rec, options.clock, options)
         loop.foreign_ids = foreign_ids
+        loop.prefix_key = key
         loop.restart_dut = lambda: dut.restart(spec, dut_env)
         loop.check_dut = dut.check
         if options.clock == "lockstep":
@@ -790,6 +849,8 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
             notes.append({"t": round(loop.clock.time_s, 6), "kind": "run-ended",
                           "detail": rec.error})
         finally:
+            if loop.resumed is not None:    # a copy resumed as another run: it is that run
+                options, wall0 = loop.options, loop.resumed.wall0
             sim_s = loop.clock.time_s
             rec.meta["truth"] = rig.truth()
             truth_arrays = rig.truth_arrays() or {}

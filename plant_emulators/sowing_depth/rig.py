@@ -262,6 +262,16 @@ class SowingDepthRig(Rig):
     def close(self) -> None:
         self.gnss.close()
 
+    def ready_to_hold(self) -> bool:
+        """The GNSS line is the rig's only state outside the process: it is held when the
+        DUT has read everything written to it (or the copy would not start from that)."""
+        return self.gnss.port.unread_bytes() == 0
+
+    def resume_held(self) -> None:
+        """The line empty again, as it was when held (a run that went on from there may
+        have left its last epochs unread on it)."""
+        self.gnss.port.discard_unread()
+
     @classmethod
     def scenario_dir(cls) -> Path:
         return Path(__file__).parent / "scenarios"
