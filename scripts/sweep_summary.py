@@ -68,8 +68,22 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("sweeps", nargs="+", type=Path)
     ap.add_argument("--tolerances", type=Path)
     args = ap.parse_args(argv)
-    rows = [json.loads(line) for path in args.sweeps for line in path.read_text().splitlines()
-            if line.strip()]
+    rows = []
+    for path in args.sweeps:
+        try:
+            lines = path.read_text().splitlines()
+        except OSError as exc:
+            print(f"sweep_summary: cannot read {path}: {exc.strerror}", file=sys.stderr)
+            return 2
+        for number, line in enumerate(lines, 1):
+            if not line.strip():
+                continue
+            try:
+                rows.append(json.loads(line))
+            except ValueError as exc:
+                print(f"sweep_summary: {path}:{number}: not a JSON sample ({exc})",
+                      file=sys.stderr)
+                return 2
     rows = [r for r in rows if r.get("verdict") is not None]
     n = len(rows)
     passes = sum(r["verdict"] == "pass" for r in rows)
