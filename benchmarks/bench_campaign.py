@@ -40,6 +40,15 @@ the runner's loop, barrier, bus and traces 14 %, the drive's CANopen node 12 %, 
 pytest and the rest 8 %: no one part is a quarter of it.
 In this VM's environment (``PYTHONDONTWRITEBYTECODE=1``) a fresh interpreter also recompiles
 and re-rewrites (pytest) every agrihil module it imports: ~0.75 s of a sample.
+
+Third round (``--rig depth --baseline b2fdf79 --samples 5``, seeds 8700000-8700004, load
+3.3-3.7): b2fdf79 median 10.92 s (min 10.67, max 11.42), this tree 8.89 s (min 8.64, max 9.17;
+-19 %), every measurement the same seed by seed. Ten of a sample's 15 runs continue from the
+checkpoint of an earlier run with the same prefix (``hil.rig.checkpoint``: the fault scenarios,
+their twin and the drive's overcurrent up to 20 s, the step run's twin up to 15 s); this
+benchmark counts the forked copies' CPU (each sample's process waits for them). A campaign's
+forked samples also leave the fork server's objects out of garbage collection
+(``hil.campaign.forked``), which a sample started here as a new interpreter does not show.
 """
 
 from __future__ import annotations

@@ -21,6 +21,7 @@ with ``DASK_DISTRIBUTED__WORKER__DAEMON=False`` or choose ``--isolation process`
 from __future__ import annotations
 
 import contextlib
+import gc
 import multiprocessing
 import os
 import signal
@@ -97,6 +98,9 @@ def _sample_main(argv: list[str], log: str) -> None:
     os.close(fd)
     import pytest
 
+    # what the fork server holds (the preloaded modules) is never garbage: the sample's
+    # collections skip it (a splice of lists, O(1)); ~0.16 s of CPU less per depth sample
+    gc.freeze()
     code = pytest.main(argv)
     from hil.rig import checkpoint
 

@@ -27,6 +27,7 @@ stops at, so that the state there is the same whatever the next event).
 from __future__ import annotations
 
 import atexit
+import contextlib
 import dataclasses
 import datetime as dt
 import os
@@ -173,17 +174,22 @@ def _serve(sock: socket.socket) -> Resume:
                 os._exit(0)
 
 
-def resume(holder: _Holder, scenario: Scenario, options: RunOptions) -> RunResult:
+def resume(holder: _Holder, scenario: Scenario, options: RunOptions) -> RunResult | None:
     """Run ``scenario`` from ``holder``'s checkpoint in a fork of it; its result.
 
-    Raises what the resumed run raised.
+    None when the holder is gone (killed, say): it is let go and the run is the caller's to
+    make from the start. Raises what the resumed run raised.
     """
     from hil.rig.runner import RunResult
 
     request = Resume(scenario, options, time.perf_counter(),
                      dt.datetime.now(dt.UTC).isoformat(timespec="seconds"))
-    _send(holder.sock, request)
-    kind, *payload = _receive(holder.sock)
+    try:
+        _send(holder.sock, request)
+        kind, *payload = _receive(holder.sock)
+    except (OSError, EOFError):
+        _drop(holder)
+        return None
     if kind == "error":
         raise payload[0]
     record, wall_s, sim_s, traces, truth = payload
@@ -219,6 +225,18 @@ def _release(key: tuple[Any, ...]) -> None:
     holder = _holders.pop(key)
     holder.sock.close()
     os.waitpid(holder.pid, 0)       # its copies' CPU time counts as this process's children
+
+
+def _drop(holder: _Holder) -> None:
+    """Let a holder that stopped answering go (ended first if it still runs)."""
+    for key, held in list(_holders.items()):
+        if held is holder:
+            del _holders[key]
+    holder.sock.close()
+    with contextlib.suppress(ProcessLookupError):
+        os.kill(holder.pid, signal.SIGKILL)
+    with contextlib.suppress(ChildProcessError):
+        os.waitpid(holder.pid, 0)
 
 
 @atexit.register

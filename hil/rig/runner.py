@@ -721,7 +721,9 @@ def run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
     key = checkpoint.prefix_key(rig_cls, scenario, dut, options)
     holder = checkpoint.holder_for(key, scenario, rig_cls.physics_period_s)
     if holder is not None:
-        return checkpoint.resume(holder, scenario, options)
+        resumed = checkpoint.resume(holder, scenario, options)
+        if resumed is not None:
+            return resumed
     try:
         result = _run_scenario(rig_cls, scenario, dut, options, key)
     except BaseException as exc:

@@ -10,6 +10,8 @@ as at 20 s of the suite's 40 s runs).
 from __future__ import annotations
 
 import dataclasses
+import os
+import signal
 from pathlib import Path
 from typing import Any
 
@@ -101,6 +103,7 @@ def test_runs_continued_from_a_checkpoint_are_the_runs_from_the_start(tmp_path: 
         resumed[name] = _run(scenario, tmp_path / f"{name}-resumed")
     for name, scenario in later.items():
         _same(resumed[name], _run(scenario, tmp_path / f"{name}-fresh", held=False))
+        assert resumed[name].record["continued_from_checkpoint_s"] == AT_S   # not from 0
         assert resumed[name].record["scenario"] == scenario.name
         assert resumed[name].record["test"] == f"{name}-resumed"
         assert resumed[name].record["run_id"] != first.record["run_id"]
@@ -149,3 +152,14 @@ def test_an_error_in_the_continued_run_is_raised_here(tmp_path: Path) -> None:
         _run(bad, tmp_path / "bad")
     assert len(checkpoint._holders) == 1     # the holder serves the next run all the same
     _run(_short("fault-inclinometer-noisy"), tmp_path / "next")
+
+
+def test_a_holder_that_is_gone_is_a_run_from_the_start(tmp_path: Path) -> None:
+    _run(_short("fault-inclinometer-stuck"), tmp_path / "first")
+    (holder,) = checkpoint._holders.values()
+    os.kill(holder.pid, signal.SIGKILL)
+    noisy = _short("fault-inclinometer-noisy")
+    run = _run(noisy, tmp_path / "noisy")
+    assert "continued_from_checkpoint_s" not in run.record
+    assert len(checkpoint._holders) == 1 and holder not in checkpoint._holders.values()
+    _same(run, _run(noisy, tmp_path / "noisy-fresh", held=False))
