@@ -190,6 +190,9 @@ def resume(holder: _Holder, scenario: Scenario, options: RunOptions) -> RunResul
     except (OSError, EOFError):
         _drop(holder)
         return None
+    except BaseException:       # Ctrl-C while waiting: an answer may come later, unread
+        _drop(holder)
+        raise
     if kind == "error":
         raise payload[0]
     record, wall_s, sim_s, traces, truth = payload

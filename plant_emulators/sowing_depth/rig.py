@@ -24,7 +24,7 @@ from plant_emulators.sowing_depth.devices import (
     TractorSpeedDevice,
 )
 from plant_emulators.sowing_depth.frames import EDS_PATH
-from plant_emulators.sowing_depth.gnss_serial import GnssSerialPort
+from plant_emulators.sowing_depth.gnss_serial import GnssSerialPort, SerialPortError
 from plant_emulators.sowing_depth.nmea import GnssReceiver
 from plant_emulators.sowing_depth.physics import SowingDepthPlant
 from plant_emulators.sowing_depth.sensors import (
@@ -265,12 +265,24 @@ class SowingDepthRig(Rig):
     def ready_to_hold(self) -> bool:
         """The GNSS line is the rig's only state outside the process: it is held when the
         DUT has read everything written to it (or the copy would not start from that)."""
-        return self.gnss.port.unread_bytes() == 0
+        return self.gnss.port.settled_unread_bytes() == 0
 
     def resume_held(self) -> None:
         """The line empty again, as it was when held (a run that went on from there may
-        have left its last epochs unread on it)."""
-        self.gnss.port.discard_unread()
+        have left its last epochs unread on it).
+
+        Raises
+        ------
+        SerialPortError
+            Bytes are still there after the flush (the copy would not start as held).
+        """
+        port = self.gnss.port
+        port.settled_unread_bytes()     # what is written is in the queue, to be flushed
+        port.discard_unread()
+        left = port.settled_unread_bytes()
+        if left:
+            raise SerialPortError(f"{port.path}: {left} bytes still unread after a flush: a "
+                                  "run cannot continue from its checkpoint")
 
     @classmethod
     def scenario_dir(cls) -> Path:

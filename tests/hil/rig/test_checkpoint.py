@@ -163,3 +163,17 @@ def test_a_holder_that_is_gone_is_a_run_from_the_start(tmp_path: Path) -> None:
     assert "continued_from_checkpoint_s" not in run.record
     assert len(checkpoint._holders) == 1 and holder not in checkpoint._holders.values()
     _same(run, _run(noisy, tmp_path / "noisy-fresh", held=False))
+
+
+def test_an_interrupted_wait_lets_the_holder_go(tmp_path: Path,
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """Its answer may still come: a later run must not read it as its own."""
+    _run(_short("fault-inclinometer-stuck"), tmp_path / "first")
+
+    def interrupted(sock: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(checkpoint, "_receive", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        _run(_short("fault-inclinometer-noisy"), tmp_path / "noisy")
+    assert not checkpoint._holders
