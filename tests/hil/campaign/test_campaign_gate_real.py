@@ -1,9 +1,12 @@
 """A slightly worse build, for real: the reference with a 1 % scale error of its ground-speed
-sensor (the Hall node's distance-per-pulse calibration off by one point: ``[rig]
-ground_speed.hall_calibration_frac = 0.05`` instead of 0.04, a rig override of the sensor
-calibration). The campaign gate flags it and does not flag a second campaign of the unchanged
-build; the single-sample gate's rule (the same ``worse_by`` and tolerance band that ``hil gate``
-applies to one record), seed by seed, cannot tell the worse build from seed noise."""
+sensor. The reference computes its field rate from the tractor's radar (PGN 65097) whenever it
+hears it, so the error is the radar's: its mounting angle 1 point further off (``[rig]
+ground_speed.radar_bias_frac = -0.015`` instead of -0.005, a rig override of the sensor's
+calibration; before issue #29's ground-speed rule this test put the same 1 % into the Hall
+wheel's calibration, which the reference no longer reads while the radar speaks). The campaign
+gate flags it and does not flag a second campaign of the unchanged build; the single-sample
+gate's rule (the same ``worse_by`` and tolerance band that ``hil gate`` applies to one record),
+seed by seed, cannot tell the worse build from seed noise."""
 
 from __future__ import annotations
 
@@ -27,9 +30,9 @@ def _worse_profile(tmp_path: Path) -> Path:
     text = REFERENCE.read_text().replace(
         '[rig]\nflow_sensor = { mode = "sliding" }',
         '[rig]\nflow_sensor = { mode = "sliding" }\n'
-        '# the worse build: speed sensor calibrated 1 % off\n'
-        'ground_speed = { hall_calibration_frac = 0.05 }')
-    assert "hall_calibration_frac" in text
+        '# the worse build: its ground-speed sensor (the radar) 1 % off\n'
+        'ground_speed = { radar_bias_frac = -0.015 }')
+    assert "radar_bias_frac" in text
     path = tmp_path / "worse" / REFERENCE.name
     path.parent.mkdir()
     path.write_text(text)
