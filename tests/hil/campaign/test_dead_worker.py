@@ -20,7 +20,13 @@ ROOT = Path(__file__).resolve().parents[3]
 REFERENCE = ROOT / "dut_profiles" / "fertilizer-piecewise-pid-daemon.toml"
 
 @pytest.mark.slow
-def test_a_sample_that_kills_its_worker_is_an_error_sample(tmp_path: Path) -> None:
+def test_a_sample_that_kills_its_worker_is_an_error_sample(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # the workers start with this process's sys.path, not its modules: under
+    # --import-mode=importlib this process imports ``tests`` without the checkout on sys.path,
+    # so a worker could not import the killer (``No module named 'tests'``: an error sample
+    # that never reached the DUT)
+    monkeypatch.syspath_prepend(str(ROOT))
     profile = tmp_path / "fertilizer-kills-its-worker-daemon.toml"
     text = REFERENCE.read_text().replace('name = "fertilizer-piecewise-pid-daemon"',
                                          'name = "fertilizer-kills-its-worker-daemon"')
