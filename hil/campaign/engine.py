@@ -242,6 +242,16 @@ class Campaign:
             if decision["early"]:
                 summary["reason"] += (f" (decided after {decision['samples_run']} of "
                                       f"{self.plan.samples} samples)")
+        failed_bus = [r for r in self.reruns if r.get("conformance_failed")]
+        if failed_bus and summary["verdict"] in ("pass", "inconclusive"):
+            # the samples keep no bus log; their reruns with full recording judge the bus
+            # conformance, which is the build's, not a seed's luck: one failure fails it all
+            first = min(failed_bus, key=lambda r: r["index"])
+            summary["verdict"] = "fail"
+            summary["reason"] = (
+                f"bus conformance failed in the rerun of sample {first['index']} with full "
+                f"recording: {', '.join(first['conformance_failed'])} (the samples' "
+                f"{summary['reason']})")
         if self.status == "interrupted":
             summary["reason"] += (f" (interrupted after {len(samples)} of "
                                   f"{self.plan.samples} samples)")

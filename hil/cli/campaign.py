@@ -343,7 +343,11 @@ def _rerun(campaign: Any, client: Any, out: Path) -> None:
             # a rerun that could not run (its disk full, its DUT gone) says nothing either way
             "reproduced": None if sample["verdict"] == "error" else same_measurements(
                 [m for m in sample["measurements"] if not is_conformance(m["name"])],
-                original.get("measurements", []))})
+                original.get("measurements", [])),
+            # judged only here: a failed one fails the campaign (Campaign.document)
+            "conformance_failed": sorted({m["name"] for m in sample["measurements"]
+                                          if is_conformance(m["name"])
+                                          and m.get("outcome") == "fail"})})
     map_samples(client, list(tasks.values()), on_rerun,
                 prefix=f"agrihil-{plan.campaign_id}-rerun")
 

@@ -70,6 +70,30 @@ def test_a_failing_build_stops_early_and_the_gate_fails_it(tmp_path: Path,
     assert "FAIL" in out and "decided after 13 of 300 samples" in out
 
 
+@pytest.mark.parametrize("failed", [[], ["isobus.claim.frames_before"]])
+def test_a_rerun_failing_bus_conformance_fails_a_passing_campaign(
+        tmp_path: Path, failed: list[str]) -> None:
+    """The samples keep no bus log, so their reruns with full recording judge the bus
+    conformance: a failure there fails the campaign, whose samples all passed, and its gate;
+    without one the campaign passes."""
+    campaign, _ = _campaign(tmp_path, ["pass"] * 300, rule="fixed")
+    campaign.reruns.append({"index": 4, "seed": 4, "why": ["worst x"], "dir": "samples/0004",
+                            "report": "samples/0004/report.html", "command": "hil qualify",
+                            "verdict": "fail" if failed else "pass", "error": None,
+                            "reproduced": True, "conformance_failed": failed})
+    campaign.write()
+    doc = json.loads((tmp_path / "campaign.json").read_text())
+    if failed:
+        assert doc["summary"]["verdict"] == "fail"
+        assert doc["summary"]["reason"].startswith(
+            "bus conformance failed in the rerun of sample 4 with full recording: "
+            "isobus.claim.frames_before")
+        assert _gate(tmp_path / "campaign.json") == 1
+    else:
+        assert doc["summary"]["verdict"] == "pass"
+        assert _gate(tmp_path / "campaign.json") == 0
+
+
 def test_a_short_record_the_rule_has_not_settled_has_no_verdict(tmp_path: Path,
                                                                 capsys: pytest.CaptureFixture[str]
                                                                 ) -> None:
