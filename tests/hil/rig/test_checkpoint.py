@@ -25,6 +25,8 @@ from hil.rig.scenario import Event
 from plant_emulators.sowing_depth.rig import SowingDepthRig
 
 ROOT = Path(__file__).resolve().parents[3]
+#: a checkpoint holds only in a process with no other thread (tests/hil/rig/conftest.py)
+RUN_EACH_TEST_IN_A_FORK = True
 PROFILE = load_profile(ROOT / "dut_profiles/sowing-depth-fuzzy-pid-daemon.toml")
 AT_S = 1.0
 
