@@ -22,9 +22,6 @@ from hil.report.rundata import RunData
 
 MEASUREMENT_HEADERS = ("name", "conditions", "value", "unit", "low", "high", "outcome", "run")
 MAX_MESSAGE = 800
-#: what a pty's line discipline queues for its reader (Linux N_TTY_BUF_SIZE; the GNSS line's
-#: ``LINE_QUEUE_BYTES``): a port nobody reads takes at most this much after its first loss
-GNSS_LINE_QUEUE_BYTES = 4096
 
 
 def _outcome_badge(m: MeasurementRow) -> str:
@@ -124,11 +121,12 @@ def _timing_and_lines_cell(run: RunData) -> str:
     parts = [f"{counts.get('written', 0):.0f} written"]
     parts += [f"{counts[k]:.0f} {k}" for k in ("overrun", "dropped", "late") if counts.get(k)]
     lost = any(counts.get(k) for k in ("overrun", "dropped"))
-    after = counts.get("bytes_after_loss")
+    after, queue = counts.get("bytes_after_loss"), counts.get("line_queue_bytes")
     # a port nobody reads still takes up to a line-discipline queue's worth after its first
-    # loss (the kernel's own buffering: plant_emulators/sowing_depth/gnss_serial.py); records
-    # from before the byte count say only how many epochs got through after it
-    not_read = (after <= GNSS_LINE_QUEUE_BYTES if after is not None
+    # loss (the kernel's own buffering: plant_emulators/sowing_depth/gnss_serial.py, which
+    # records that bound); records from before the byte count say only how many epochs got
+    # through after it
+    not_read = (after <= queue if after is not None and queue is not None
                 else not counts.get("written_after_loss"))
     flag = ""
     if lost and not_read:

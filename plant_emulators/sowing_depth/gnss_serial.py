@@ -27,7 +27,7 @@ loses epochs as it would behind a real receiver's UART, and every epoch is count
   of an overrun one). A line nobody reads still takes up to :data:`LINE_QUEUE_BYTES` after it:
   the kernel moves what the pty's own buffer holds into the line discipline's queue when it
   gets to it (late on a loaded host), which makes room without any reader. More than that
-  after the loss means the DUT read.
+  after the loss means the DUT read. The counts carry that bound as *line_queue_bytes*.
 
 A DUT that opens the port late first reads what was buffered: call
 :meth:`PtySerialPort.discard_unread` before the DUT starts if that matters.
@@ -255,7 +255,10 @@ class GnssSerialPort:
                 "first_loss_s": None if self.first_loss_s is None
                 else round(self.first_loss_s, 3),
                 "written_after_loss": self.written_after_loss,
-                "bytes_after_loss": self.bytes_after_loss}
+                "bytes_after_loss": self.bytes_after_loss,
+                # what a port nobody reads may still take after the loss: the report judges
+                # bytes_after_loss against it, from the record, not a constant of its own
+                "line_queue_bytes": LINE_QUEUE_BYTES}
 
     def close(self) -> None:
         """Close the pseudo-terminal."""

@@ -60,7 +60,8 @@ def test_a_port_nobody_reads_is_told_by_the_bytes_after_the_loss(
     _with_epochs(qual, FIELD_RUN, {"written": 42, "overrun": 1, "dropped": 38, "late": 0,
                                    "unread_bytes": 4095, "first_loss_s": 2.2,
                                    "written_after_loss": after_loss // 187,
-                                   "bytes_after_loss": after_loss})
+                                   "bytes_after_loss": after_loss,
+                                   "line_queue_bytes": LINE_QUEUE_BYTES})
     field = _runs_rows(qual)[FIELD_RUN]
     assert ("PORT NOT READ" in field) is not_read and ("EPOCHS LOST" in field) is not not_read
 
@@ -82,6 +83,7 @@ def test_sowing_run_records_its_gnss_epochs(tmp_path: Path, duration: float) -> 
     result = run_scenario(SowingDepthRig, scenario, InProcessDut(PiDepthController()),
                           RunOptions(out_dir=tmp_path, bus="inline", clock="lockstep"))
     counts = result.record["truth"]["gnss_epochs"]
+    assert counts["line_queue_bytes"] == LINE_QUEUE_BYTES   # the bound the report judges by
     # 10 Hz for 4 s, epochs at 0.0 … 4.0 s; the built-in PI does not read the GNSS port
     assert counts["written"] + counts["overrun"] + counts["dropped"] + counts["late"] == 41
     assert counts["written"] > 0

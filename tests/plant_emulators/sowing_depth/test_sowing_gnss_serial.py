@@ -125,7 +125,7 @@ def test_a_reading_dut_loses_nothing(gnss: GnssSerialPort) -> None:
         counts = gnss.counts()
     assert counts == {"written": 50, "overrun": 0, "dropped": 0, "late": 0,
                       "unread_bytes": 0, "first_loss_s": None, "written_after_loss": 0,
-                      "bytes_after_loss": 0}
+                      "bytes_after_loss": 0, "line_queue_bytes": LINE_QUEUE_BYTES}
 
 
 def test_a_slow_reader_gets_epochs_through_after_the_first_loss(gnss: GnssSerialPort) -> None:
