@@ -189,7 +189,15 @@ def test_both_engines_leave_the_same_run(tmp_path: Path, scenario: str,
         assert sorted(a.files) == sorted(b.files)
         for key in a.files:
             np.testing.assert_array_equal(a[key], b[key], err_msg=key)
-    assert json.dumps(records["python"]["truth"]) == json.dumps(records["native"]["truth"])
+    # the GNSS line's counts are the kernel's, not the physics': a pty nobody reads takes
+    # what its line discipline drains when the kernel gets to it, which varies with the
+    # host's load (CI saw 1 overrun then 2, first loss at 8.6 s then 6.6 s); both runs must
+    # still have lost epochs on a line nobody reads
+    truth = {e: {k: v for k, v in r["truth"].items() if k != "gnss_epochs"}
+             for e, r in records.items()}
+    assert json.dumps(truth["python"]) == json.dumps(truth["native"])
+    for record in records.values():
+        assert record["truth"]["gnss_epochs"]["dropped"] > 0
     assert (py / "bus.log").stat().st_size > 10_000        # a real run, not an empty one
 
 
