@@ -16,6 +16,29 @@ from hil.rig.device import Device
 from hil.rig.scenario import Scenario, load_scenario
 
 
+class _ReadWatched:
+    """A dataclass field that remembers it was read (``<name>_read`` on the instance).
+
+    A descriptor-typed field (see :mod:`dataclasses`): the class-level lookup gives the
+    default, an instance's lookup returns the value and sets the flag.
+    """
+
+    def __init__(self, default: Any = None) -> None:
+        self.default = default
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.slot, self.flag = f"_{name}", f"{name}_read"
+
+    def __get__(self, obj: Any, owner: type | None = None) -> Any:
+        if obj is None:
+            return self.default
+        obj.__dict__[self.flag] = True
+        return obj.__dict__.get(self.slot, self.default)
+
+    def __set__(self, obj: Any, value: Any) -> None:
+        obj.__dict__[self.slot] = value
+
+
 @dataclass
 class RigContext:
     """What a rig gets when it is built for one run."""
@@ -29,8 +52,15 @@ class RigContext:
     #: where those overrides come from (named in config errors)
     config_source: str = ""
     #: the scenario the rig is built for (a rig that plays an ISOBUS tractor reads its
-    #: ``tractor`` table); None: a rig built outside a run
-    scenario: Scenario | None = None
+    #: ``tractor`` table); None: a rig built outside a run. Reading it sets
+    #: ``scenario_read``: such a rig may have shaped its state by the scenario's events, so
+    #: its runs are never held for later runs with the same prefix (:mod:`hil.rig.checkpoint`)
+    scenario: Scenario | None = _ReadWatched()  # type: ignore[assignment]
+
+    @property
+    def scenario_read(self) -> bool:
+        """Whether the rig read :attr:`scenario` (see there)."""
+        return bool(self.__dict__.get("scenario_read", False))
 
 
 class Rig(ABC):
@@ -173,7 +203,10 @@ class Rig(ABC):
 
         True only when all of the rig's state is in the process or as :meth:`resume_held`
         restores it: a run is held there for later runs with the same prefix
-        (:mod:`hil.rig.checkpoint`). False (the default): the rig is never held.
+        (:mod:`hil.rig.checkpoint`). False (the default): the rig is never held. A rig that
+        read its context's scenario is never held either, whatever this says: its state at
+        the first event may depend on the events that follow it (the runner checks
+        :attr:`RigContext.scenario_read`).
         """
         return False
 

@@ -21,6 +21,7 @@ import pytest
 from hil.dut.factory import make_dut, profile_run_options
 from hil.dut.profile import load_profile
 from hil.rig import RunOptions, RunResult, Scenario, checkpoint, run_scenario
+from hil.rig.base import RigContext
 from hil.rig.scenario import Event
 from plant_emulators.sowing_depth.rig import SowingDepthRig
 
@@ -179,3 +180,39 @@ def test_an_interrupted_wait_lets_the_holder_go(tmp_path: Path,
     with pytest.raises(KeyboardInterrupt):
         _run(_short("fault-inclinometer-noisy"), tmp_path / "noisy")
     assert not checkpoint._holders
+
+
+class _ReadsItsScenario(SowingDepthRig):
+    """The depth rig, but one that looks at its scenario when it is built (as a rig that
+    prepares its faults from the events would)."""
+
+    def __init__(self, ctx: RigContext) -> None:
+        self.events_at_build = len(ctx.scenario.events) if ctx.scenario else 0
+        super().__init__(ctx)
+
+
+@pytest.mark.parametrize("rig_cls, held", [(SowingDepthRig, True), (_ReadsItsScenario, False)])
+def test_a_rig_that_reads_its_scenario_is_never_held(tmp_path: Path, rig_cls: type,
+                                                     held: bool) -> None:
+    """Its state at the first event may depend on the events after it: no later run may
+    continue from it. The same rig that does not read its scenario is held (the control)."""
+    scenario = _short("fault-inclinometer-stuck")
+    dut, _ = make_dut(PROFILE, bus="inline", clock="lockstep")
+    run = run_scenario(rig_cls, scenario, dut, _options(tmp_path / "first"))
+    assert run.record["error"] is None
+    later = _short("fault-inclinometer-noisy")
+    key = checkpoint.prefix_key(rig_cls, later, dut, _options(tmp_path))
+    assert key is not None                  # a run the checkpoints would take
+    holder = checkpoint.holder_for(key, later, rig_cls.physics_period_s)
+    assert (holder is not None) is held
+    assert len(checkpoint._holders) == int(held)
+
+
+def test_the_rig_context_tells_whether_its_scenario_was_read() -> None:
+    scenario = _short("fault-inclinometer-stuck")
+    ctx = RigContext(seed=1, rng=np.random.default_rng(1), scenario=scenario)
+    assert not ctx.scenario_read
+    assert ctx.scenario is scenario and ctx.scenario_read
+    bare = RigContext(seed=1, rng=np.random.default_rng(1))
+    assert bare.scenario is None and bare.scenario_read
+    assert not RigContext(seed=1, rng=np.random.default_rng(1), scenario=None).scenario_read
