@@ -812,7 +812,7 @@ struct fertilizer_fert_setpoint_t {
     uint8_t enable;
 
     /**
-     * Ground speed the controller uses in FieldRate mode.
+     * The terminal's ground speed source for FieldRate mode (the operator's choice). Wheels read the ground through slip: a controller may prefer a valid ground-based speed (PGN 65097) while it hears one (the reference does: ground_speed_first_s).
      *
      * Range: 0..3 (0..3 -)
      * Scale: 1
