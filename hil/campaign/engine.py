@@ -99,7 +99,13 @@ def dask_client(*, workers: int | None = None, scheduler: str | None = None,
     # system-monitor sample every 0.5 s kept for an hour, 1000-10000 log entries) a worker
     # grew 0.8 MB a minute, ~16 MB over a 300-sample campaign, and stays flat with these
     # (measured with 1-worker clusters of 0.5 s tasks for 3 min: +2.0 MB against +0.2 MB)
+    #
+    # Each worker holds only the sample it runs (worker-saturation 1.0; Dask's 1.1 gives a
+    # one-thread worker a second, queued one): a worker that a sample kills takes no queued
+    # sample with it, so a good sample is never charged with the deaths of a killer's worker
+    # and its retry's (seen: "2 workers died while trying to run it" on an innocent sample).
     with dask.config.set({"distributed.scheduler.allowed-failures": 1,
+                          "distributed.scheduler.worker-saturation": 1.0,
                           "distributed.worker.daemon": False,
                           "distributed.admin.system-monitor.log-length": 120,
                           "distributed.admin.low-level-log-length": 100,

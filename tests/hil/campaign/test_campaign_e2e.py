@@ -97,12 +97,18 @@ def test_ctrl_c_leaves_a_valid_partial_campaign(tmp_path: Path) -> None:
                              "--samples", "40", "--bus", "inline", "--workers", "2",
                              "--out", str(out), "--no-progress"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    jsonl = out / "samples.jsonl"
+    # the samples go to the staging directory inside --out as they finish (moved in when
+    # the campaign ends: hil.record.staging); interrupt once two are there
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline:
-        if jsonl.exists() and jsonl.read_text().count("\n") >= 2:
+        staged = list(out.glob(".campaign-*/samples.jsonl"))
+        if staged and staged[0].read_text().count("\n") >= 2:
             break
         time.sleep(0.2)
+    else:
+        proc.kill()
+        pytest.fail("no two samples staged within 120 s")
+    assert proc.poll() is None          # still running: the interrupt comes mid-campaign
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err
