@@ -98,10 +98,17 @@ def test_traffic_during_a_spin_is_handled_by_it() -> None:
     spinning = EventLoop(busy_poll_us=200_000.0)  # a wide window: robust on a loaded machine
     a, b = socket.socketpair()
     got: list[bytes] = []
-    spinning.add(a.fileno(), READ, lambda _ev: got.append(a.recv(100)))
+
+    def on_read(_ev: int) -> None:
+        got.append(a.recv(100))
+        if got == [b"y"]:   # the request handled: its reply comes 2 ms later, during the spin
+            threading.Timer(0.002, b.send, args=(b"z",)).start()
+
+    spinning.add(a.fileno(), READ, on_read)
     try:
         spinning.busy_poll.window_s = spinning.busy_poll.limit_s
-        threading.Timer(0.002, b.send, args=(b"z",)).start()  # a reply 2 ms after the request
+        # the reply's timer starts from the handler, not beside the request: on a loaded
+        # machine a timer started before the request was sent could send first ("zy")
         b.send(b"y")
         spinning.run_once(1.0)
         assert b"".join(got) == b"yz" and spinning.busy_poll.hits == 1
