@@ -275,9 +275,6 @@ class _Loop:
         #: set by run_scenario: the run's prefix key (:mod:`hil.rig.checkpoint`), None when
         #: it cannot be held
         self.prefix_key: tuple[Any, ...] | None = None
-        #: the context the rig was built with: a rig that read its scenario (at construction
-        #: or since) may have shaped its state by the events, and is not held
-        self.rig_context: RigContext | None = None
         #: in a copy resumed from a checkpoint: the run it continues as
         self.resumed: checkpoint.Resume | None = None
 
@@ -464,8 +461,9 @@ class _Loop:
             clock.start()
             while True:
                 t = k * dt
-                if (k == hold_tick and rig.ready_to_hold()     # later runs may start here
-                        and not (self.rig_context and self.rig_context.scenario_read)):
+                # later runs may start here; not from a rig that read its scenario (at
+                # construction or since): it may have shaped its state by the events
+                if k == hold_tick and rig.ready_to_hold() and not rig.ctx.scenario_read:
                     resume = checkpoint.hold(self.prefix_key or (), k)
                     if resume is not None:      # this is such a later run now
                         scenario = self._continue_as(resume)
@@ -832,7 +830,7 @@ def _run_scenario(rig_cls: type[Rig], scenario: Scenario, dut: DutRunner,
         stack.callback(lambda: rec.meta.__setitem__("dut", dut.stop()))
         loop = _Loop(rig, scenario, bus, rec, options.clock, options)
         loop.foreign_ids = foreign_ids
-        loop.prefix_key, loop.rig_context = key, ctx
+        loop.prefix_key = key
         loop.restart_dut = lambda: dut.restart(spec, dut_env)
         loop.check_dut = dut.check
         if options.clock == "lockstep":
