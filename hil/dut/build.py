@@ -26,10 +26,10 @@ import time
 from pathlib import Path
 
 from hil.dut.base import DutError
+from hil.dut.paths import PROJECT_ROOT
 from hil.dut.profile import DutProfile
 from hil.errors import ConfigError
 
-PROJECT_ROOT = Path(__file__).resolve().parents[2]
 SKIP_PARTS = {"build", ".git", "__pycache__"}
 
 

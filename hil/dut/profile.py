@@ -41,6 +41,7 @@ from typing import Any, Literal
 
 from hil.condition_limits import ConditionCase, check_band, check_names
 from hil.config import check_positive, from_mapping, key_text
+from hil.dut.paths import PROJECT_ROOT
 from hil.errors import ConfigError
 from hil.limits import (
     MEASUREMENTS,
@@ -477,8 +478,6 @@ def database_path(database: str, profile_path: Path | None) -> Path:
     p = Path(database)
     if p.is_absolute():
         return p
-    from hil.dut.build import PROJECT_ROOT
-
     at_root = PROJECT_ROOT / p
     if at_root.exists() or profile_path is None:
         return at_root
