@@ -14,8 +14,10 @@ holding a distribution and where its spread comes from::
 ``normal`` takes ``mean`` and ``sd``; ``uniform`` ``low`` and ``high``; ``truncnormal``
 ``mean``, ``sd``, ``low`` and ``high`` (a normal cut to ``[low, high]``). ``source`` is
 required: every entry says where its spread comes from. An unknown parameter, a parameter that
-is not a number, an unknown distribution, a missing or extra argument: each is a
-:class:`~hil.errors.ConfigError` naming the file and the key.
+is not a number, an unknown distribution, a missing or extra argument, a number out of range
+(``mean = 1e308``: a span that overflows a float, a truncated normal's bounds more than a
+million sd from its mean): each is a :class:`~hil.errors.ConfigError` naming the file and the
+key (``[table.mean]`` for a number out of range).
 
 Draws depend on the sample's seed alone (``S+i``): sample *i* of a campaign can be drawn again
 on its own, and the values it ran with are recorded with the sample.
@@ -41,8 +43,22 @@ DISTRIBUTIONS: dict[str, tuple[str, ...]] = {
     "uniform": ("low", "high"),
     "truncnormal": ("mean", "sd", "low", "high"),
 }
+#: a normal's draws are taken to lie within this many sd of its mean (the range checked)
+SPAN_SD = 40.0
+#: a truncated normal's bounds must lie within this many sd of its mean: further out, scipy's
+#: sampler loses the bounds' difference (a draw of -inf at 5e307 sd) and the normal's own mass
+#: in [low, high] is nil anyway
+MAX_BOUND_SD = 1e6
 #: second word of the seed sequence of the draws: a stream apart from the rig's own
 _STREAM = 0xD15_9E25
+
+
+class OutOfRange(ValueError):
+    """A distribution's number out of range; ``arg`` names it (``mean``, ``sd``, ``low``…)."""
+
+    def __init__(self, arg: str, why: str) -> None:
+        self.arg = arg
+        super().__init__(f"{arg} is out of range: {why}")
 
 
 @dataclass(frozen=True)
@@ -80,6 +96,30 @@ class Distribution:
         if "low" in self.args and not self.args["low"] < self.args["high"]:
             raise ValueError(f"low {self.args['low']!r} must be below high "
                              f"{self.args['high']!r}")
+        self._check_range()
+
+    def _check_range(self) -> None:
+        """Finite numbers can still be out of range: a span that overflows a float, bounds
+        the normal cannot reach (``mean = 1e308``). Each is refused here, naming the number
+        (:class:`OutOfRange`), instead of by numpy or scipy at the first draw."""
+        a = self.args
+        if self.dist == "normal":
+            # a normal's draws lie within 40 sd of its mean (beyond 9 sd: never, in practice)
+            if not math.isfinite(abs(a["mean"]) + SPAN_SD * a["sd"]):
+                culprit = "sd" if SPAN_SD * a["sd"] > abs(a["mean"]) else "mean"
+                raise OutOfRange(culprit, f"mean ± {SPAN_SD:g} sd overflows a float")
+        elif self.dist == "uniform":
+            if not math.isfinite(a["high"] - a["low"]):
+                culprit = "high" if abs(a["high"]) >= abs(a["low"]) else "low"
+                raise OutOfRange(culprit, "high - low overflows a float")
+        else:
+            lo, hi = (a["low"] - a["mean"]) / a["sd"], (a["high"] - a["mean"]) / a["sd"]
+            culprit = "sd" if a["low"] <= a["mean"] <= a["high"] else "mean"
+            if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi
+                    and max(abs(lo), abs(hi)) <= MAX_BOUND_SD):
+                raise OutOfRange(culprit, f"low and high lie {min(abs(lo), abs(hi)):.3g} sd "
+                                 f"from the mean: the bounds must lie within "
+                                 f"{MAX_BOUND_SD:g} sd of it")
 
     def draw(self, rng: np.random.Generator) -> float:
         """One value."""
@@ -154,6 +194,10 @@ def load_dispersion(path: str | Path, *, rig: str) -> Dispersion:
                               key=f"{key}.dist")
         try:
             parameters[key] = Distribution(dist, args, source)
+        except OutOfRange as exc:
+            raise ConfigError(f"{exc} ({dist} with " + ", ".join(
+                f"{k} = {v!r}" for k, v in args.items()) + ")",
+                path=where, key=f"{key}.{exc.arg}") from exc
         except ValueError as exc:
             raise ConfigError(str(exc), path=where, key=key) from exc
     if not parameters:

@@ -9,9 +9,16 @@ import pytest
 
 from hil.campaign.dispersion import Distribution, load_dispersion
 from hil.campaign.overrides import format_override, parse_overrides
+from hil.cli.main import main
 from hil.errors import ConfigError
 
 ROOT = Path(__file__).resolve().parents[3]
+
+
+#: a truncated normal whose mean is far outside its bounds: scipy refused it at the first draw
+#: ("Domain error in arguments"), after the campaign had started
+OUT_OF_RANGE = ('[meter.row_spread_sd_frac]\ndist = "truncnormal"\nmean = 1e308\nsd = 0.01\n'
+                'low = 0.0\nhigh = 0.1\nsource = "x"\n')
 
 
 def _write(tmp_path: Path, text: str) -> Path:
@@ -65,6 +72,17 @@ def test_distributions_stay_in_their_support() -> None:
      "meter.row_spread_sd_frac.source", "needs a source"),
     ('[meter.row_spread_sd_frac]\ndist = "normal"\nmean = 1.0\nsd = 1.0\nscale = 2\n'
      'source = "x"\n', "meter.row_spread_sd_frac", "unknown scale"),
+    # finite numbers out of range: each names the number, not numpy's or scipy's words
+    (OUT_OF_RANGE, "meter.row_spread_sd_frac.mean", "mean is out of range"),
+    ('[meter.row_spread_sd_frac]\ndist = "truncnormal"\nmean = 0.05\nsd = 1e-300\n'
+     'low = 0.0\nhigh = 0.1\nsource = "x"\n', "meter.row_spread_sd_frac.sd",
+     "within 1e+06 sd"),
+    ('[meter.row_spread_sd_frac]\ndist = "uniform"\nlow = -1e308\nhigh = 1e308\n'
+     'source = "x"\n', "meter.row_spread_sd_frac.high", "high - low overflows"),
+    ('[meter.row_spread_sd_frac]\ndist = "normal"\nmean = 0.1\nsd = 1e307\n'
+     'source = "x"\n', "meter.row_spread_sd_frac.sd", "overflows a float"),
+    ('[meter.row_spread_sd_frac]\ndist = "normal"\nmean = 1.7e308\nsd = 1e306\n'
+     'source = "x"\n', "meter.row_spread_sd_frac.mean", "overflows a float"),
 ])
 def test_bad_entries_are_errors_naming_file_and_key(tmp_path: Path, text: str, key: str,
                                                     words: str) -> None:
@@ -91,3 +109,17 @@ def test_overrides_round_trip_floats_exactly() -> None:
         parse_overrides(["meter.nope=1.0"], rig="fertilizer")
     with pytest.raises(ConfigError, match="KEY=VALUE"):
         parse_overrides(["meter.rows"], rig="fertilizer")
+
+
+def test_a_number_out_of_range_is_exit_2_naming_file_table_and_key(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = _write(tmp_path, OUT_OF_RANGE)
+    code = main(["campaign", str(ROOT / "dut_profiles/fertilizer-piecewise-pid-daemon.toml"),
+                 "--samples", "1", "--bus", "inline", "--no-progress", "--dispersion",
+                 str(path), "--out", str(tmp_path / "c")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2
+    assert len(err.splitlines()) == 1, err
+    assert str(path) in err and "[meter.row_spread_sd_frac.mean]" in err, err
+    assert "Domain error" not in err and "Traceback" not in err
+    assert not (tmp_path / "c" / "samples").exists()
