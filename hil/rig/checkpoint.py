@@ -42,11 +42,11 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from hil.dut.inprocess import InProcessDut
+from hil.rig.run_data import RunOptions, RunResult
 
 if TYPE_CHECKING:
     from hil.dut.base import DutRunner
     from hil.rig.base import Rig
-    from hil.rig.runner import RunOptions, RunResult
     from hil.rig.scenario import Scenario
 
 #: holders kept alive at once (each is a forked copy of the process, mostly shared pages):
@@ -180,8 +180,6 @@ def resume(holder: _Holder, scenario: Scenario, options: RunOptions) -> RunResul
     None when the holder is gone (killed, say): it is let go and the run is the caller's to
     make from the start. Raises what the resumed run raised.
     """
-    from hil.rig.runner import RunResult
-
     request = Resume(scenario, options, time.perf_counter(),
                      dt.datetime.now(dt.UTC).isoformat(timespec="seconds"))
     try:

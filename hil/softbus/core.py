@@ -14,7 +14,7 @@ import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import can
 
@@ -28,7 +28,6 @@ from hil.softbus.settings import DEFAULT_CHANNEL
 from hil.softbus.timing import ERROR_FRAME_BITS
 
 if TYPE_CHECKING:
-    from hil.softbus.session import ClientSession
     from hil.softbus.transport import SocketTransport
 
 log = logging.getLogger(__name__)
@@ -60,6 +59,29 @@ class BusStats:
     busy_s: float = 0.0
 
 
+class Client(Protocol):
+    """What the core asks of a client it serves: a socket's session
+    (:class:`hil.softbus.session.Client`) or a local endpoint
+    (:class:`hil.softbus.local.LocalEndpoint`, ``local`` True, which also has
+    ``deliver_frame``). The core names this role, not the classes that play it, so that the
+    sessions may know the core without the core knowing them."""
+
+    #: for counters and warnings
+    name: str
+    #: the channel it asked for, and the one the core lists it on (None: none)
+    channel: str | None
+    attached: str | None
+    #: its connection; the core sets it to None when it forgets the client
+    transport: Any
+    #: True: takes frames as objects (``deliver_frame``), not lines
+    local: bool
+    #: its counters (a dataclass: :class:`hil.softbus.session.ClientStats`)
+    stats: Any
+
+    def deliver(self, line: bytes) -> None: ...
+    def deliver_many(self, lines: list[bytes]) -> None: ...
+
+
 class BusCore:
     """The state the loop owns. Use :class:`SoftwareBus` or ``hil bus serve``."""
 
@@ -76,12 +98,12 @@ class BusCore:
         self.client_sndbuf = client_sndbuf
         self.hold_s = hold_s
         self.max_client_buffer = max_client_buffer
-        self.channels: dict[str, list[ClientSession]] = {}
+        self.channels: dict[str, list[Client]] = {}
         #: every open socket connection (raw mode or not), closed when the bus stops
         self.connections: set[SocketTransport] = set()
         self.stats = BusStats()
         self.faults = FaultTable(seed=seed)
-        self.arbiter: Arbiter[tuple[ClientSession | None, Frame, str]] | None = (
+        self.arbiter: Arbiter[tuple[Client | None, Frame, str]] | None = (
             Arbiter(bitrate) if bitrate else None)
         self.loop = loop
         self._timer: Timer | None = None
@@ -90,7 +112,7 @@ class BusCore:
         self._log_path = log_path
         self._logger: can.Listener | None = None
         #: lines waiting for one write per client while a burst is processed (None: no burst)
-        self._batch: dict[ClientSession, list[bytes]] | None = None
+        self._batch: dict[Client, list[bytes]] | None = None
         #: while one socket read's frames are offered: the moment the server read them (their
         #: common ready time on a paced bus), and whether the wire must be pumped after them
         self._arrival: float | None = None
@@ -114,7 +136,7 @@ class BusCore:
     def stamp(self, mono: float) -> float:
         return self._wall0 + (mono - self._mono0)
 
-    def attach(self, client: ClientSession) -> None:
+    def attach(self, client: Client) -> None:
         """Put ``client`` on its channel (taking it off the one it was on, if any: a client
         is on one channel at most, however often it asks)."""
         assert client.channel is not None
@@ -122,14 +144,14 @@ class BusCore:
         self.channels.setdefault(client.channel, []).append(client)
         client.attached = client.channel
 
-    def detach(self, client: ClientSession) -> None:
+    def detach(self, client: Client) -> None:
         """Forget ``client``: off its channel, out of the open batch, no transport."""
         self._unlist(client)
         if self._batch:
             self._batch.pop(client, None)
         client.transport = None
 
-    def _unlist(self, client: ClientSession) -> None:
+    def _unlist(self, client: Client) -> None:
         channel = client.attached
         if channel is None:
             return
@@ -194,7 +216,7 @@ class BusCore:
             self._pump()
 
     # frames -------------------------------------------------------------------------
-    def submit(self, sender: ClientSession | None, frame: Frame,
+    def submit(self, sender: Client | None, frame: Frame,
                channel: str | None = None) -> None:
         self.stats.frames_in += 1
         channel = channel or (sender.channel if sender else DEFAULT_CHANNEL) or DEFAULT_CHANNEL
@@ -234,7 +256,7 @@ class BusCore:
         if nxt is not None:
             self._timer = self.call_later(max(0.0, nxt - time.monotonic()), self._pump)
 
-    def _transmit(self, sender: ClientSession | None, frame: Frame, channel: str,
+    def _transmit(self, sender: Client | None, frame: Frame, channel: str,
                   mono: float) -> None:
         if self.faults:
             verdict = self.faults.apply(frame.can_id, frame.data)
@@ -255,7 +277,7 @@ class BusCore:
                 return
         self._broadcast(sender, frame, channel, mono)
 
-    def _delayed(self, sender: ClientSession | None, frame: Frame, channel: str,
+    def _delayed(self, sender: Client | None, frame: Frame, channel: str,
                  mono: float) -> None:
         self._delayed_pending -= 1
         outer = self.begin_batch()  # a local driver's open batch keeps the order
@@ -265,7 +287,7 @@ class BusCore:
             if outer:
                 self.end_batch()
 
-    def _broadcast(self, sender: ClientSession | None, frame: Frame, channel: str,
+    def _broadcast(self, sender: Client | None, frame: Frame, channel: str,
                    mono: float) -> None:
         stamp = self.stamp(mono)
         line: bytes | None = None

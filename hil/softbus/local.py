@@ -7,20 +7,43 @@ objects, never as text).
 
 from __future__ import annotations
 
+import threading
 import time
 from collections import deque
-from typing import TYPE_CHECKING, Any
+from contextlib import AbstractContextManager
+from typing import TYPE_CHECKING, Any, Protocol
 
 import can
 
-from hil.softbus.loop import sched_yield
+from hil.softbus.loop import EventLoop, sched_yield
 from hil.softbus.protocol import Frame, ProtocolError
 from hil.softbus.session import ClientSession
 from hil.softbus.settings import DEFAULT_CHANNEL
 
 if TYPE_CHECKING:
     from hil.softbus.core import BusCore
-    from hil.softbus.server import SoftwareBus
+
+
+class LoopOwner(Protocol):
+    """What a local client uses of the bus whose loop it runs while it waits: a
+    :class:`~hil.softbus.server.SoftwareBus` (its loop, its core, the lock that says which
+    thread runs the loop, and its list of local drivers). Named here as a role so that this
+    module does not import the server, which imports it."""
+
+    host: str
+    port: int
+    _state: BusCore
+    _loop: EventLoop | None
+    _stopping: bool
+    _waiting: int
+    _lock: threading.Lock
+    _unpark: threading.Event
+    _drivers: list[LocalBus]
+    _locals: int
+
+    def _acquire(self) -> BusCore: ...
+    def _hand_over(self) -> None: ...
+    def _owning(self) -> AbstractContextManager[BusCore]: ...
 
 class LocalEndpoint(ClientSession):
     """A client in the server's own process (:class:`LocalBus`): frames go in and out as
@@ -87,7 +110,7 @@ class LocalBus(can.BusABC):
     not in a real-time loop. ``busy_poll_us`` spins in ``recv`` for that long before blocking.
     """
 
-    def __init__(self, softbus: SoftwareBus, channel: str = DEFAULT_CHANNEL, *,
+    def __init__(self, softbus: LoopOwner, channel: str = DEFAULT_CHANNEL, *,
                  busy_poll_us: float = 0.0, max_queue: int = 100_000, **kwargs: Any) -> None:
         self._softbus = softbus
         self.channel_info = f"local client of the software bus on {softbus.host}:{softbus.port}"

@@ -9,12 +9,9 @@ from __future__ import annotations
 import contextlib
 import socket
 from collections import deque
-from typing import TYPE_CHECKING, Protocol
+from typing import Protocol
 
 from hil.softbus.loop import READ, WRITE, EventLoop
-
-if TYPE_CHECKING:
-    from hil.softbus.session import ClientSession
 
 #: Linux's TCP_QUICKACK (12): a one-shot "acknowledge now". Where the system has none the
 #: option fails and is skipped (a Nagle client is then as slow as its peer's delayed ACK)
@@ -28,13 +25,30 @@ class Transport(Protocol):
     def get_write_buffer_size(self) -> int: ...
 
 
+class Connections(Protocol):
+    """Where the open connections are listed (the bus core), so that stopping closes them."""
+
+    connections: set[SocketTransport]
+
+
+class Receiver(Protocol):
+    """What a socket transport hands its bytes to: the client's session
+    (:class:`hil.softbus.session.ClientSession`), named by its role so that the session may
+    know the transport without the transport knowing it."""
+
+    @property
+    def server(self) -> Connections: ...
+    def data_received(self, data: bytes) -> None: ...
+    def connection_lost(self, exc: Exception | None) -> None: ...
+
+
 class SocketTransport:
     """A client's socket on the server's loop: non-blocking writes with a user-space buffer
     for what the kernel does not take at once (written out when the socket is writable)."""
 
     __slots__ = ("_buffer", "_buffered", "_closing", "client", "fd", "loop", "sock")
 
-    def __init__(self, sock: socket.socket, loop: EventLoop, client: ClientSession) -> None:
+    def __init__(self, sock: socket.socket, loop: EventLoop, client: Receiver) -> None:
         self.sock = sock
         self.fd = sock.fileno()
         self.loop = loop
