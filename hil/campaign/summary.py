@@ -77,6 +77,12 @@ def summarize(samples: list[dict[str, Any]], *, pass_probability: float | None,
     n, passed = len(judged), sum(1 for s in judged if s["verdict"] == "pass")
     v = verdict(passed, n, pass_probability=pass_probability, confidence=confidence,
                 errors=len(errors))
+    reason = v.reason
+    cut = [s["index"] for s in errors if s["verdict"] == "interrupted"]
+    if cut:
+        # not a DUT result nor a failure of the DUT's run: the campaign did not run them
+        reason += (f"; {len(cut)} of the samples not counted were interrupted (a worker "
+                   f"stopped under them): the campaign was interrupted in part")
     lo, hi = clopper_pearson(passed, n, 0.95)
     measurements = {key: measurement_stats(entry, worst=worst)
                     for key, entry in sorted(by_measurement(samples).items())}
@@ -85,7 +91,7 @@ def summarize(samples: list[dict[str, Any]], *, pass_probability: float | None,
         "errors": len(errors), "pass_rate": passed / n if n else None, "ci95": [lo, hi],
         "demonstrated_pass_probability": lower_bound(passed, n, confidence) if n else 0.0,
         "confidence": confidence, "required_pass_probability": pass_probability,
-        "verdict": v.verdict, "reason": v.reason, "samples_needed": v.samples_needed,
+        "verdict": v.verdict, "reason": reason, "samples_needed": v.samples_needed,
         "failing_samples": sorted(s["index"] for s in judged if s["verdict"] == "fail"),
         "error_samples": sorted(s["index"] for s in errors),
     }, measurements

@@ -32,6 +32,7 @@ from hil.gate.campaign_baseline import (
     worseness,
 )
 from hil.gate.campaign_requirement import RequirementVerdict, judge_requirement, worse
+from hil.gate.completeness import interrupted_samples
 from hil.gate.tolerance import DEFAULT_TOLERANCES, Tolerances
 
 __all__ = ["CampaignGateResult", "ShiftRow", "compare_campaigns", "render_campaign_text",
@@ -123,6 +124,14 @@ def compare_campaigns(record: dict[str, Any], baseline: dict[str, Any] | None,
     own = worse(recorded, judged.verdict or "error")
     result = CampaignGateResult(verdict="pass", campaign_verdict=own, alpha=alpha,
                                 requirement=judged)
+    cut = interrupted_samples(record)
+    if cut:
+        shown = ", ".join(str(i) for i in cut[:10]) + (" …" if len(cut) > 10 else "")
+        result.notes.append(
+            f"the campaign was interrupted in part: {len(cut)} of "
+            f"{record['samples_requested']} samples were interrupted ({shown}; a worker "
+            f"stopped under them) and did not run; the verdict is the one the samples that "
+            f"ran settle whatever those would have given")
     if own == "error":
         result.verdict = "error"
         result.notes.append("the campaign has no verdict (no sample completed, or its "

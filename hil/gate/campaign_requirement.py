@@ -86,7 +86,9 @@ def judge_requirement(doc: Mapping[str, Any], *, path: str) -> RequirementVerdic
     """The verdict of the record's samples on its requirement (see the module)."""
     requirement = requirement_of(doc, path=path)
     rule = rule_of(doc, requirement, path=path)
-    samples = [{"index": s["index"], "verdict": s["verdict"]} for s in doc["samples"]]
+    # an interrupted sample did not run (a worker stopped under it): missing, not judged
+    samples = [{"index": s["index"], "verdict": s["verdict"]} for s in doc["samples"]
+               if s["verdict"] != "interrupted"]
     total = int(doc["samples_requested"])
     judged = [s for s in samples if s["verdict"] in JUDGED]
     passed = sum(1 for s in judged if s["verdict"] == "pass")

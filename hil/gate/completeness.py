@@ -2,7 +2,9 @@
 pass.
 
 A qualification record (``agrihil.qualification/1``) and a campaign record
-(``agrihil.campaign/1``) both say whether they finished; the gate asks this module before it
+(``agrihil.campaign/1``) both say whether they finished (a campaign that says ``complete`` may
+still hold samples whose own run was interrupted, a worker stopped under them: those samples did
+not run, and count as missing); the gate asks this module before it
 judges anything, with or without a baseline, and a record that did not finish gets no verdict
 (``hil gate`` exits 2 saying why). A qualification that failed before it was cut short has
 already failed and is judged as a fail.
@@ -13,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-__all__ = ["incomplete_reason"]
+__all__ = ["incomplete_reason", "interrupted_samples"]
 
 
 def _count(value: Any) -> int | None:
@@ -31,19 +33,37 @@ def _qualification(doc: Mapping[str, Any], path: str) -> str | None:
             f"verdict: run hil qualify again")
 
 
+def interrupted_samples(doc: Mapping[str, Any]) -> list[int]:
+    """The indices of the samples of a campaign record that were interrupted (their own
+    qualification cut short: a worker stopped under them), which the campaign did not run."""
+    samples = doc.get("samples")
+    if not isinstance(samples, list):
+        return []
+    return [s.get("index") for s in samples
+            if isinstance(s, Mapping) and s.get("verdict") == "interrupted"]
+
+
+def _indices(indices: list[int]) -> str:
+    shown = ", ".join(str(i) for i in indices[:10])
+    return shown + (f" and {len(indices) - 10} more" if len(indices) > 10 else "")
+
+
 def _campaign(doc: Mapping[str, Any], path: str) -> str | None:
     status = doc.get("status")
     samples = doc.get("samples")
-    finished = len(samples) if isinstance(samples, list) else 0
+    cut = interrupted_samples(doc)
+    # an interrupted sample did not run: it counts as missing, not as a sample
+    finished = (len(samples) if isinstance(samples, list) else 0) - len(cut)
     requested = _count(doc.get("samples_requested"))
     if status == "complete" and (requested is None or finished >= requested):
         return None
     what = status if status in ("interrupted", "running") else "incomplete"
     if status == "complete":
-        what = "incomplete although it says complete"
+        what = ("interrupted in part" if cut else "incomplete although it says complete")
+    partly = (f"; {len(cut)} interrupted: {_indices(cut)}" if cut else "")
     return (f"{path}: the campaign is {what} ({finished} of "
-            f"{requested if requested is not None else '?'} samples); an incomplete campaign "
-            f"has no verdict: run hil campaign again")
+            f"{requested if requested is not None else '?'} samples run{partly}); an "
+            f"incomplete campaign has no verdict: run hil campaign again")
 
 
 def incomplete_reason(doc: Any, *, path: str) -> str | None:
@@ -67,7 +87,7 @@ def incomplete_reason(doc: Any, *, path: str) -> str | None:
     >>> why = incomplete_reason({"schema": "agrihil.campaign/1", "status": "interrupted",
     ...                          "samples": [], "samples_requested": 4}, path="c.json")
     >>> why.split(";")[0]
-    'c.json: the campaign is interrupted (0 of 4 samples)'
+    'c.json: the campaign is interrupted (0 of 4 samples run)'
     """
     if not isinstance(doc, Mapping):
         return None
