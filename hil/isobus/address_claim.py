@@ -16,6 +16,7 @@ answer to a request (0 here, so that runs are deterministic), and commanded addr
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -28,6 +29,9 @@ CLAIM_WAIT_S = 0.25
 SELF_CONFIGURABLE_RANGE = range(128, 248)
 """Addresses a self-configurable control function may take when it loses its own."""
 CLAIM_PRIORITY = 6
+EVENTS_KEPT = 256
+"""How many of its last claim events a control function keeps (a peer that claims its address
+again and again must not grow them without bound)."""
 
 #: put one frame on the bus now: (priority, pgn, source, destination, data)
 SendFrame = Callable[[int, int, int, int, bytes], None]
@@ -85,7 +89,7 @@ class AddressClaimer:
         self.current: int | None = None
         self.settle_at = float("inf")
         self.settled = False
-        self.events: list[ClaimEvent] = []
+        self.events: deque[ClaimEvent] = deque(maxlen=EVENTS_KEPT)
 
     @property
     def address(self) -> int | None:

@@ -27,7 +27,7 @@ RTS/CTS transfers both ways, byte-identical payloads).
 from __future__ import annotations
 
 import math
-from collections import defaultdict, deque
+from collections import Counter, defaultdict, deque
 from collections.abc import Iterable
 from dataclasses import dataclass
 
@@ -136,17 +136,26 @@ class IsobusNetwork(Device):
         The device's name in logs.
     log_frames : int
         How many of the last frames :attr:`log` keeps.
+
+    What a peer cannot do to it: frames from the global address 0xFF (no control function
+    sends from it) and, but for the address claim and the request for it, from the null
+    address 0xFE are dropped and counted in :attr:`dropped`; transfers from addresses that never
+    claimed are not answered (:mod:`hil.isobus.transport`). Address claims reach applications
+    that subscribe to PGN 0xEE00 (after the network's table has taken them), so a Task
+    Controller sees an address change hands.
     """
 
     def __init__(self, timing: TransportTiming | None = None,
                  faults: IsobusFaults | None = None, start_s: float = 0.0,
-                 name: str = "isobus", log_frames: int = 100_000) -> None:
+                 name: str = "isobus", log_frames: int = 10_000) -> None:
         self.name = name
         self.faults = faults or IsobusFaults()
         self.table = AddressTable()
         self.functions: list[InternalControlFunction] = []
         self.transport = TransportLayer(self._send_from_transport, self._deliver, timing,
-                                        self.faults)
+                                        self.faults, claimed=self._claimed)
+        #: frames dropped on arrival, by reason (``source 0xFF``, ``source 0xFE``)
+        self.dropped: Counter[str] = Counter()
         self.start_s = start_s
         self._started = False
         self._now = 0.0
@@ -315,6 +324,9 @@ class IsobusNetwork(Device):
         while self._loopback:
             self._intake(self._loopback.popleft())
 
+    def _claimed(self, address: int) -> bool:
+        return self.table.name_of(address) is not None
+
     def _local(self, address: int) -> list[InternalControlFunction]:
         return [f for f in self.functions if f.claimer.current == address
                 and address != NULL_ADDRESS]
@@ -323,6 +335,11 @@ class IsobusNetwork(Device):
         fid = decode_id(msg.arbitration_id)
         data = bytes(msg.data)
         now = self._now
+        if fid.source == GLOBAL_ADDRESS or (fid.source == NULL_ADDRESS and fid.pgn not in (
+                PGN_ADDRESS_CLAIMED, PGN_REQUEST)):
+            # ISO 11783-5: 0xFF is no one's source; from 0xFE only cannot-claim and requests
+            self.dropped[f"source 0x{fid.source:02X}"] += 1
+            return
         if fid.pgn == PGN_ADDRESS_CLAIMED:
             if len(data) != 8:
                 return
@@ -331,6 +348,8 @@ class IsobusNetwork(Device):
             for cf in self.functions:
                 if cf.name.value != value:
                     cf.claimer.on_claim(fid.source, value, now)
+            self._deliver(Received(fid.pgn, data, fid.source, GLOBAL_ADDRESS, now,
+                                   fid.priority))
             return
         if fid.pgn == PGN_REQUEST and len(data) >= 3 and \
                 int.from_bytes(data[:3], "little") == PGN_ADDRESS_CLAIMED:

@@ -23,11 +23,23 @@ Timeouts (ISO 11783-3, clause 5.12.3; the same as SAE J1939-21):
 
 A receiver that times out sends an abort with reason 3 (a BAM receiver drops the message
 silently, BAM has no aborts); a sender that times out does the same.
+
+What a peer may take of the receiver (a hostile or broken peer must not starve a good one):
+
+- a transfer (RTS, ETP RTS or BAM) from an address that never claimed (ISO 11783-5: no
+  control function sends before its claim) is not answered: it is counted
+  (:attr:`TransportLayer.counts` ``unclaimed``), not logged a line per frame;
+- at most :attr:`TransportTiming.max_sessions_per_source` peer-to-peer receive sessions per
+  source and :attr:`TransportTiming.max_sessions` in all: one more RTS is aborted with reason 1
+  (already in one or more connection-managed sessions);
+- a message larger than :attr:`TransportTiming.max_receive_bytes` is aborted with reason 2
+  (system resources needed elsewhere) at its RTS, before any byte is kept;
+- the ends of transfers are kept as the last :data:`EVENTS_KEPT` events, and counted.
 """
 
 from __future__ import annotations
 
-from collections import deque
+from collections import Counter, deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
@@ -54,6 +66,8 @@ from hil.isobus.tp_messages import (
 INF = float("inf")
 TP_PRIORITY = 7
 """Priority of TP and ETP frames (ISO 11783-3 and J1939-21 use the lowest)."""
+EVENTS_KEPT = 1000
+"""How many of the last transfer ends :attr:`TransportLayer.events` keeps (all are counted)."""
 
 
 @dataclass(frozen=True)
@@ -73,6 +87,11 @@ class TransportTiming:
     max_sessions : int
         Most receive sessions (TP and ETP, not BAM) at once; one more RTS is aborted with
         reason 1.
+    max_sessions_per_source : int
+        Most of those from one source address (to different local functions); one more RTS
+        from it is aborted with reason 1.
+    max_receive_bytes : int
+        Largest message this layer receives; an RTS announcing more is aborted with reason 2.
     max_retransmits : int
         CTS frames asking again for packets already sent that a sender accepts before it
         aborts with reason 5.
@@ -89,6 +108,8 @@ class TransportTiming:
     etp_cts_packets: int = 255
     max_sessions: int = 16
     max_retransmits: int = 2
+    max_sessions_per_source: int = 2
+    max_receive_bytes: int = 1 << 21
 
 
 @dataclass(frozen=True)
@@ -225,11 +246,15 @@ class TransportLayer:
         Timeouts and window sizes.
     hooks : TransportHooks, optional
         Fault injection; none by default.
+    claimed : callable, optional
+        ``claimed(address)``: whether a control function claimed ``address``; transfers from
+        one that did not are not answered. ``None``: every address is taken as claimed.
     """
 
     def __init__(self, send_frame: SendFrame, deliver: Callable[[Received], None],
                  timing: TransportTiming | None = None,
-                 hooks: TransportHooks | None = None) -> None:
+                 hooks: TransportHooks | None = None,
+                 claimed: Callable[[int], bool] | None = None) -> None:
         self._send_frame = send_frame
         self._deliver = deliver
         self.timing = timing or TransportTiming()
@@ -237,7 +262,11 @@ class TransportLayer:
         self._out: dict[tuple[int, int], Session] = {}
         self._queued: dict[tuple[int, int], deque[Session]] = {}
         self._in: dict[tuple[int, int], Session] = {}
-        self.events: list[TransportEvent] = []
+        self._claimed = claimed
+        #: the last EVENTS_KEPT transfer ends
+        self.events: deque[TransportEvent] = deque(maxlen=EVENTS_KEPT)
+        #: every transfer end by kind, and ``unclaimed``: transfers from unclaimed addresses
+        self.counts: Counter[str] = Counter()
         self._now = 0.0
 
     # -- public ----------------------------------------------------------------------------
@@ -320,9 +349,9 @@ class TransportLayer:
             try:
                 cm = decode_cm(data, extended=pgn == PGN_ETP_CM)
             except FrameError as exc:
-                self.events.append(TransportEvent(now, "refused", "receiver",
-                                                  "ETP" if pgn == PGN_ETP_CM else "TP", 0,
-                                                  source, destination, 0, detail=str(exc)))
+                self._record(TransportEvent(now, "refused", "receiver",
+                                            "ETP" if pgn == PGN_ETP_CM else "TP", 0,
+                                            source, destination, 0, detail=str(exc)))
                 return
             self._on_cm(cm, source, destination, priority, now)
         elif pgn in (PGN_TP_DT, PGN_ETP_DT):
@@ -443,6 +472,10 @@ class TransportLayer:
         protocol = {Control.RTS: "TP", Control.ETP_RTS: "ETP", Control.BAM: "BAM"}[cm.control]
         if (protocol == "BAM") != (destination == GLOBAL_ADDRESS):
             return   # a BAM to one address or an RTS to everyone: not a valid connection
+        if self._claimed is not None and not self._claimed(source):
+            # no claim, no connection (ISO 11783-5): not answered, counted, not logged per frame
+            self.counts["unclaimed"] += 1
+            return
         size = cm.size
         # the buffer grows as packets arrive (in order, or the session is aborted): an RTS
         # announcing 117 MB costs nothing until the data comes
@@ -454,24 +487,26 @@ class TransportLayer:
             bad = not 9 <= size <= TP_MAX_BYTES or cm.packets != s.total
         old = self._in.pop(s.key, None)
         if old is not None:
-            self.events.append(self._event(old, now, "dropped",
-                                           detail="replaced by a new connection"))
+            self._record(self._event(old, now, "dropped", detail="replaced by a new connection"))
         if bad:
             detail = f"{protocol} announces {size} bytes in {cm.packets} packets"
-            if protocol != "BAM":
-                self._cm_from_receiver(s, CmFrame(Control.ABORT, s.pgn,
-                                                  reason=AbortReason.OTHER))
-            self.events.append(self._event(s, now, "refused", reason=AbortReason.OTHER
-                                           if protocol != "BAM" else None, detail=detail))
+            self._refuse(s, AbortReason.OTHER, now, detail)
+            return
+        if size > self.timing.max_receive_bytes:
+            self._refuse(s, AbortReason.RESOURCES_NEEDED, now,
+                         f"{protocol} announces {size} bytes; this receiver takes at most "
+                         f"{self.timing.max_receive_bytes}")
             return
         if protocol != "BAM":
-            open_peer = sum(1 for r in self._in.values() if r.protocol != "BAM")
-            if open_peer >= self.timing.max_sessions:
-                self._cm_from_receiver(s, CmFrame(Control.ABORT, s.pgn,
-                                                  reason=AbortReason.ALREADY_IN_SESSION))
-                self.events.append(self._event(s, now, "refused",
-                                               reason=AbortReason.ALREADY_IN_SESSION,
-                                               detail=f"{open_peer} sessions already open"))
+            peer = [r for r in self._in.values() if r.protocol != "BAM"]
+            from_source = sum(1 for r in peer if r.source == source)
+            if len(peer) >= self.timing.max_sessions:
+                self._refuse(s, AbortReason.ALREADY_IN_SESSION, now,
+                             f"{len(peer)} sessions already open")
+                return
+            if from_source >= self.timing.max_sessions_per_source:
+                self._refuse(s, AbortReason.ALREADY_IN_SESSION, now,
+                             f"{from_source} sessions from 0x{source:02X} already open")
                 return
         self._in[s.key] = s
         if protocol == "BAM":
@@ -481,6 +516,14 @@ class TransportLayer:
         s.window_packets = min(limit, self.timing.tp_cts_packets if protocol == "TP"
                                else self.timing.etp_cts_packets)
         self._send_cts(s, now)
+
+    def _refuse(self, s: Session, reason: AbortReason, now: float, detail: str) -> None:
+        """Abort an RTS at once (a BAM has no abort: it is dropped)."""
+        if s.protocol != "BAM":
+            self._cm_from_receiver(s, CmFrame(Control.ABORT, s.pgn, reason=reason))
+        self._record(self._event(s, now, "refused",
+                                 reason=int(reason) if s.protocol != "BAM" else None,
+                                 detail=detail))
 
     def _send_cts(self, s: Session, now: float) -> None:
         n = min(s.window_packets, s.total - s.next_packet + 1)
@@ -586,6 +629,10 @@ class TransportLayer:
                 self._cm_from_receiver(s, cm)
         self._end(s, now, kind, reason=int(reason), detail=detail)
 
+    def _record(self, event: TransportEvent) -> None:
+        self.events.append(event)
+        self.counts[event.kind] += 1
+
     def _event(self, s: Session, now: float, kind: str, reason: int | None = None,
                detail: str = "") -> TransportEvent:
         return TransportEvent(now, kind, s.role, s.protocol, s.pgn, s.source, s.destination,
@@ -597,7 +644,7 @@ class TransportLayer:
         if table.get(s.key) is s:
             del table[s.key]
         s.pending.clear()
-        self.events.append(self._event(s, now, kind, reason, detail))
+        self._record(self._event(s, now, kind, reason, detail))
         if s.role == "sender":
             queue = self._queued.get(s.key)
             if queue:

@@ -17,11 +17,13 @@ from hil.isobus.tp_messages import (
     PGN_ETP_DT,
     PGN_TP_CM,
     PGN_TP_DT,
+    AbortReason,
     CmFrame,
     Control,
     decode_cm,
     encode_cm,
 )
+from hil.isobus.transport import TransportTiming
 from hil.isobus.wire import VirtualWire
 
 RIG = IsobusName(identity_number=1, function=134, device_class=1)
@@ -34,8 +36,8 @@ def payload(n: int, seed: int = 0) -> bytes:
     return bytes((i * 31 + seed) & 0xFF for i in range(n))
 
 
-def setup():
-    rig, dut = IsobusNetwork(name="rig"), IsobusNetwork(name="dut")
+def setup(timing: TransportTiming | None = None):
+    rig, dut = IsobusNetwork(name="rig", timing=timing), IsobusNetwork(name="dut")
     a = rig.add(RIG, 0x80)
     b = dut.add(DUT, 0x90)
     wire = VirtualWire([rig, dut])
@@ -131,7 +133,9 @@ def test_sizes_beyond_the_protocols_are_refused() -> None:
 
 
 def test_the_largest_etp_announcement_is_accepted_and_one_more_byte_refused() -> None:
-    _rig, _dut, _a, _b, wire, _got_a, _got_b = setup()
+    # a receiver that takes the protocol's largest message (the default takes 2 MiB)
+    _rig, _dut, _a, _b, wire, _got_a, _got_b = setup(
+        TransportTiming(max_receive_bytes=ETP_MAX_BYTES))
     for size, expected in ((ETP_MAX_BYTES, Control.ETP_CTS), (ETP_MAX_BYTES + 1, Control.ABORT)):
         rts = CmFrame(Control.ETP_RTS, PGN, size=size)
         start = len(wire.frames)
@@ -140,6 +144,22 @@ def test_the_largest_etp_announcement_is_accepted_and_one_more_byte_refused() ->
         assert answer.control == expected
         if expected == Control.ETP_CTS:
             assert (answer.packets, answer.next_packet) == (255, 1)
+            wire.inject(_frame(PGN_ETP_CM, 0x90, 0x80, encode_cm(
+                CmFrame(Control.ABORT, PGN, reason=250))), sender=1)
+
+
+def test_a_message_larger_than_the_receiver_takes_is_refused_at_its_rts() -> None:
+    rig, _dut, _a, _b, wire, _got_a, _got_b = setup(TransportTiming(max_receive_bytes=4000))
+    for size, expected in ((4000, Control.ETP_CTS), (4001, Control.ABORT)):
+        start = len(wire.frames)
+        wire.inject(_frame(PGN_ETP_CM, 0x90, 0x80, encode_cm(
+            CmFrame(Control.ETP_RTS, PGN, size=size))), sender=1)
+        answer = decode_cm(bytes(wire.frames[start + 1].frame.data), extended=True)
+        assert answer.control == expected
+        if expected == Control.ABORT:
+            assert answer.reason == AbortReason.RESOURCES_NEEDED
+            assert "at most 4000" in rig.transport.events[-1].detail
+        else:
             wire.inject(_frame(PGN_ETP_CM, 0x90, 0x80, encode_cm(
                 CmFrame(Control.ABORT, PGN, reason=250))), sender=1)
 

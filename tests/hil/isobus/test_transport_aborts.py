@@ -21,6 +21,7 @@ from hil.isobus.tp_messages import (
 )
 from hil.isobus.transport import TransportTiming
 from hil.isobus.wire import ScriptedNode, VirtualWire
+from tests.hil.isobus.peers import claims
 
 PGN = 0xEF00
 RIG = IsobusName(identity_number=1, function=134)
@@ -44,7 +45,9 @@ def run(script: list[tuple[float, can.Message]], *, send: int | None = None,
         until: float = 3.0) -> tuple[IsobusNetwork, ScriptedNode]:
     rig = IsobusNetwork(timing=timing, faults=faults)
     cf = rig.add(RIG, 0x80)
-    peer = ScriptedNode(script)
+    # the peers claim their addresses first: a transfer from an address that never claimed
+    # is not answered (test_transport_guard.py)
+    peer = ScriptedNode([*claims(PEER, 0x91), *script])
     wire = VirtualWire([rig, peer])
     wire.run_until(0.5)
     if send is not None:

@@ -19,6 +19,7 @@ from hil.isobus.tp_messages import (
     encode_cm,
 )
 from hil.isobus.wire import ScriptedNode, VirtualWire
+from tests.hil.isobus.peers import claims
 
 PGN = 0xEF00
 RIG = IsobusName(identity_number=1, function=134)
@@ -36,7 +37,7 @@ def cm(control: Control, **kw: int) -> bytes:
 def start() -> tuple[IsobusNetwork, ScriptedNode, VirtualWire]:
     rig = IsobusNetwork()
     rig.add(RIG, 0x80)
-    peer = ScriptedNode()
+    peer = ScriptedNode(claims(PEER))   # a transfer needs a claimed address
     wire = VirtualWire([rig, peer])
     wire.run_until(0.5)
     return rig, peer, wire
