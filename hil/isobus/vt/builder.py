@@ -55,6 +55,8 @@ class PoolBuilder:
             while self._next in self._used:
                 self._next += 1
             object_id = self._next
+        elif object_id in self._used:
+            raise ValueError(f"object id {object_id} is already used in this pool")
         self._used.add(object_id)
         full: dict[str, Any] = {}
         for item in LAYOUTS[otype]:

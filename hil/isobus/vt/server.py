@@ -1,0 +1,659 @@
+"""The Virtual Terminal server (ISO 11783-6, versions 3 to 6, 4 by default) on an ISOBUS port.
+
+:class:`VirtualTerminalServer` is an application of the network layer like the Task Controller
+(:mod:`hil.isobus.tc.server`): no thread, no clock; the network ticks it with the run time, so
+it runs in lockstep and in real time alike. What a working set sees:
+
+- the VT status message every second (function 0xFE: the active working set master's address,
+  its data mask and soft key mask);
+- its working set maintenance messages watched: a working set silent for 3 s is gone (its
+  pool leaves the VT's volatile memory; stored versions stay);
+- the connection procedure answered: get memory, get number of soft keys, get text font data,
+  get hardware, get supported objects, get window mask data, get versions and extended get
+  versions; store, load and delete version (extended too) against a
+  :class:`~hil.isobus.vt.store.VersionStore` that outlives a VT restart, so a second
+  connection loads its pool instead of uploading it;
+- object pool transfers (whole parameter groups: the network layer brings them by TP or ETP),
+  several before the end of object pool message; then the pool parsed and validated
+  (:class:`~hil.isobus.vt.pool.ObjectPool`), and the end of object pool response with the
+  standard's error codes and the faulty object's id when it is refused;
+- its commands applied to its pool and answered (:mod:`hil.isobus.vt.commands`), each one
+  recorded in :attr:`VirtualTerminalServer.commands`;
+- a function the VT does not have answered with "unsupported VT function" (0xFD, version 5 and
+  later) or a negative acknowledgement (versions 3 and 4).
+
+The operator's side (soft keys, buttons, numeric and string input) is :meth:`key_event`,
+:meth:`enter_number`, :meth:`enter_string` and :meth:`escape`; :mod:`hil.isobus.vt.operator`
+scripts them in time. Whatever may change what the operator sees calls the ``on_change``
+hooks (the renderer and the browser VT listen there).
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+from hil.isobus.name import IsobusName
+from hil.isobus.network import IsobusNetwork
+from hil.isobus.port import GLOBAL_ADDRESS, IsobusPort, Received
+from hil.isobus.vt.codec import VtObject
+from hil.isobus.vt.commands import apply, is_enabled
+from hil.isobus.vt.errors import NO_OBJECT, EndOfPoolError, PoolErrorCode, VtPoolError
+from hil.isobus.vt.layouts import INTRODUCED_IN, ObjectType
+from hil.isobus.vt.messages import (
+    ACKNOWLEDGEMENT_PGN,
+    ECU_TO_VT_PGN,
+    EXTENDED_LABEL_LENGTH,
+    LABEL_LENGTH,
+    VT_TO_ECU_PGN,
+    WORKING_SET_MASTER_PGN,
+    Function,
+    KeyActivation,
+    get32,
+    pad,
+    u16,
+    u32,
+)
+from hil.isobus.vt.pool import ObjectPool
+from hil.isobus.vt.store import ClientKey, VersionStore
+from hil.isobus.vt.workingset import INPUTS, WorkingSet
+
+T = ObjectType
+
+STATUS_PERIOD_S = 1.0
+"""The VT status period (ISO 11783-6)."""
+WORKING_SET_TIMEOUT_S = 3.0
+"""A working set silent this long (no maintenance message) is gone."""
+KEY_REPEAT_S = 0.2
+"""How often a held soft key or button is reported as still held."""
+PRIORITY = 5
+
+
+@dataclass(frozen=True)
+class VtOptions:
+    """What the VT is and reports.
+
+    Attributes
+    ----------
+    version : int
+        VT version, 3 to 6 (the get memory response and the object types it takes).
+    memory_bytes : int
+        Object pool memory: get memory answers "not enough" beyond it, a transfer beyond it
+        ends in "out of memory".
+    data_mask_px : int
+        Width and height of the (square) data mask area, pixels.
+    soft_key_width_px, soft_key_height_px : int
+        A soft key descriptor's size, pixels.
+    virtual_soft_keys, physical_soft_keys, navigation_soft_keys : int
+        Soft keys per soft key mask, physical keys, navigation keys.
+    small_fonts, large_fonts, font_styles : int
+        The get text font data bit fields (all sizes; normal style only: the rig draws no
+        bold, italic or flashing text).
+    """
+
+    version: int = 4
+    memory_bytes: int = 4 * 1024 * 1024
+    data_mask_px: int = 480
+    soft_key_width_px: int = 80
+    soft_key_height_px: int = 60
+    virtual_soft_keys: int = 6
+    physical_soft_keys: int = 6
+    navigation_soft_keys: int = 0
+    small_fonts: int = 0xFF
+    large_fonts: int = 0x7F
+    font_styles: int = 0x00
+
+    def __post_init__(self) -> None:
+        if self.version not in (3, 4, 5, 6):
+            raise ValueError(f"VT version {self.version}: the rig's VT is version 3, 4, 5 or 6")
+        if not 200 <= self.data_mask_px <= 65535:
+            raise ValueError(f"data mask of {self.data_mask_px} px: at least 200 (the "
+                             f"standard's smallest VT)")
+        if self.memory_bytes <= 0:
+            raise ValueError(f"VT memory of {self.memory_bytes} bytes")
+
+
+@dataclass(frozen=True)
+class VtEvent:
+    """A connection event: connected, memory, transferred, activated, refused, loaded,
+    stored, deleted, timed out, restarted, operator."""
+
+    time_s: float
+    address: int | None
+    kind: str
+    detail: str = ""
+
+
+@dataclass(frozen=True)
+class VtCommandRecord:
+    """One command a working set sent and how the VT answered it."""
+
+    time_s: float
+    address: int
+    function: int
+    object_id: int
+    error: int
+    detail: str
+
+
+ChangeHook = Callable[[WorkingSet, float, str], None]
+
+
+@dataclass(order=True)
+class _Timer:
+    time_s: float
+    seq: int
+    action: Callable[[float], None] = field(compare=False)
+
+
+class VirtualTerminalServer:
+    """A VT on an ISOBUS port (see the module docstring).
+
+    Parameters
+    ----------
+    port : IsobusPort
+        The network seam.
+    options : VtOptions
+        Version, memory, screen.
+    store : VersionStore, optional
+        Stored versions; pass the same store to a restarted VT.
+    """
+
+    def __init__(self, port: IsobusPort, options: VtOptions | None = None,
+                 store: VersionStore | None = None) -> None:
+        self.port = port
+        self.options = options or VtOptions()
+        self.store = store if store is not None else VersionStore()
+        self.sessions: dict[int, WorkingSet] = {}
+        self.events: list[VtEvent] = []
+        self.commands: list[VtCommandRecord] = []
+        self.on_change: list[ChangeHook] = []
+        self.last_function = 0xFF
+        self._next_status_s: float | None = None
+        self._down_until_s: float | None = None
+        self._timers: list[_Timer] = []
+        self._seq = 0
+        self._now = 0.0
+        port.subscribe(ECU_TO_VT_PGN, self._on_message)
+        port.subscribe(WORKING_SET_MASTER_PGN, self._on_working_set_master)
+
+    # -- timers ----------------------------------------------------------------------------------
+
+    def tick(self, now_s: float) -> None:
+        """Advance to ``now_s``: status, working set timeouts, lock timeouts, operator timers."""
+        self._now = now_s
+        if self._down(now_s) or self.port.address is None:
+            return
+        while self._timers and self._timers[0].time_s <= now_s + 1e-9:
+            heapq.heappop(self._timers).action(now_s)
+        if self._next_status_s is None or now_s >= self._next_status_s - 1e-9:
+            self._send_status()
+            if self._next_status_s is None:
+                self._next_status_s = now_s
+            while self._next_status_s <= now_s + 1e-9:
+                self._next_status_s += STATUS_PERIOD_S
+        for address, ws in list(self.sessions.items()):
+            if now_s - ws.last_seen_s >= WORKING_SET_TIMEOUT_S - 1e-9:
+                del self.sessions[address]
+                self._event(now_s, address, "timed out",
+                            f"no working set maintenance for {now_s - ws.last_seen_s:.1f} s")
+                self._changed(ws, now_s, "working set gone")
+                continue
+            if ws.lock_until_s is not None and now_s >= ws.lock_until_s - 1e-9:
+                mask = ws.locked_mask
+                ws.locked_mask = ws.lock_until_s = None
+                self._send(ws.address, pad([Function.LOCK_UNLOCK_MASK, 0, 0x10]))
+                self._event(now_s, address, "unlocked", f"mask {mask}: lock timed out")
+                self._changed(ws, now_s, "unlock")
+
+    def next_due(self, now_s: float) -> float:
+        """When the VT has something to do."""
+        if self.port.address is None:
+            return math.inf
+        if self._down(now_s):
+            assert self._down_until_s is not None
+            return self._down_until_s
+        due = now_s if self._next_status_s is None else self._next_status_s
+        if self._timers:
+            due = min(due, self._timers[0].time_s)
+        for ws in self.sessions.values():
+            due = min(due, ws.last_seen_s + WORKING_SET_TIMEOUT_S)
+            if ws.lock_until_s is not None:
+                due = min(due, ws.lock_until_s)
+        return max(due, now_s)
+
+    def at(self, time_s: float, action: Callable[[float], None]) -> None:
+        """Run ``action(now)`` at run time ``time_s`` (the scripted operator's timeline)."""
+        self._seq += 1
+        heapq.heappush(self._timers, _Timer(time_s, self._seq, action))
+
+    def restart(self, now_s: float, *, down_s: float = 0.0) -> None:
+        """Restart the VT: working sets and their pools lost, stored versions kept; silent for
+        ``down_s`` seconds, then the status again."""
+        for ws in list(self.sessions.values()):
+            self._changed(ws, now_s, "VT restarted")
+        self.sessions.clear()
+        self._next_status_s = None
+        self._timers.clear()
+        self._down_until_s = now_s + down_s
+        self._event(now_s, None, "restarted", f"down for {down_s:g} s")
+
+    def _down(self, now_s: float) -> bool:
+        return self._down_until_s is not None and now_s < self._down_until_s
+
+    # -- what the VT shows -----------------------------------------------------------------------
+
+    @property
+    def active_working_set(self) -> WorkingSet | None:
+        """The working set whose masks the VT shows: the first with an active pool."""
+        for ws in self.sessions.values():
+            if ws.active:
+                return ws
+        return None
+
+    def _send_status(self) -> None:
+        ws = self.active_working_set
+        address = ws.address if ws is not None else 0xFE
+        mask = ws.active_mask if ws is not None else NO_OBJECT
+        keys = ws.soft_key_mask if ws is not None else NO_OBJECT
+        self.port.send(VT_TO_ECU_PGN, bytes([Function.VT_STATUS, address]) + u16(mask)
+                       + u16(keys) + bytes([0, self.last_function]), GLOBAL_ADDRESS, PRIORITY)
+
+    # -- helpers ---------------------------------------------------------------------------------
+
+    def _send(self, address: int, data: bytes) -> None:
+        self.port.send(VT_TO_ECU_PGN, data, address, PRIORITY)
+
+    def _event(self, time_s: float, address: int | None, kind: str, detail: str = "") -> None:
+        self.events.append(VtEvent(time_s, address, kind, detail))
+
+    def _changed(self, ws: WorkingSet, time_s: float, reason: str) -> None:
+        for hook in list(self.on_change):
+            hook(ws, time_s, reason)
+
+    def _key(self, address: int) -> tuple[ClientKey, int | None]:
+        name = self.port.name_of(address)
+        return (name if name is not None else ("address", address)), name
+
+    def _session(self, address: int, time_s: float, why: str) -> WorkingSet:
+        ws = self.sessions.get(address)
+        if ws is None:
+            key, name = self._key(address)
+            ws = WorkingSet(address, key, name, time_s, time_s)
+            self.sessions[address] = ws
+            self._event(time_s, address, "connected",
+                        (f"NAME {name:016X}" if name is not None else "NAME unknown")
+                        + f" ({why})")
+        return ws
+
+    # -- receiving -------------------------------------------------------------------------------
+
+    def _on_working_set_master(self, msg: Received) -> None:
+        if self._down(msg.time_s) or msg.destination not in (GLOBAL_ADDRESS,
+                                                             self.port.address):
+            return
+        self._session(msg.source, msg.time_s, "working set master").last_seen_s = msg.time_s
+
+    def _on_message(self, msg: Received) -> None:
+        t = msg.time_s
+        self._now = max(self._now, t)
+        if self._down(t) or not msg.data or msg.destination != self.port.address:
+            return
+        d = msg.data
+        function = d[0]
+        known = msg.source in self.sessions
+        ws = self._session(msg.source, t, f"function 0x{function:02X} first")
+        if not known and function != Function.WORKING_SET_MAINTENANCE:
+            self._event(t, msg.source, "out of order",
+                        f"function 0x{function:02X} before a working set master or "
+                        f"maintenance message")
+        ws.last_seen_s = t
+        if function == Function.WORKING_SET_MAINTENANCE:
+            if ws.maintenance_s is None or d[1] & 0x01:
+                ws.version = d[2] if len(d) > 2 and d[2] != 0xFF else None
+            ws.maintenance_s = t
+            return
+        self.last_function = function
+        handler = self._STATELESS.get(function)
+        if handler is not None:
+            handler(self, ws, d, t)
+            return
+        result = apply(ws, d, t) if ws.pool is not None else None
+        if result is None:
+            if ws.pool is None and function in _COMMAND_FUNCTIONS:
+                self._refuse(ws, function, t, "command before a pool is active")
+            else:
+                self._refuse(ws, function, t, f"function 0x{function:02X} is not supported",
+                             unsupported=True)
+            return
+        if result.response is not None:
+            self._send(ws.address, result.response)
+        self._record(ws, t, result.function, result.object_id, result.error, result.detail)
+        if result.changed and ws.locked_mask is None:
+            self._changed(ws, t, result.detail)
+
+    def _record(self, ws: WorkingSet, t: float, function: int, object_id: int, error: int,
+                detail: str) -> None:
+        self.commands.append(VtCommandRecord(t, ws.address, function, object_id, error,
+                                             detail))
+
+    def _refuse(self, ws: WorkingSet, function: int, t: float, why: str,
+                unsupported: bool = False) -> None:
+        """A function the VT does not have ("unsupported VT function", 0xFD, from version 5),
+        or a command it cannot carry out now: a negative acknowledgement (PGN 0xE800)."""
+        self._record(ws, t, function, NO_OBJECT, 0xFF, why)
+        if unsupported and self.options.version >= 5:
+            self._send(ws.address, pad([Function.UNSUPPORTED_FUNCTION, function]))
+            return
+        pgn = ECU_TO_VT_PGN
+        self.port.send(ACKNOWLEDGEMENT_PGN, bytes([0x01, 0xFF, 0xFF, 0xFF, ws.address,
+                                                   pgn & 0xFF, (pgn >> 8) & 0xFF, pgn >> 16]),
+                       GLOBAL_ADDRESS, PRIORITY)
+
+    # -- the connection procedure ---------------------------------------------------------------
+
+    def _get_memory(self, ws: WorkingSet, d: bytes, t: float) -> None:
+        needed = get32(d, 2)
+        ws.memory_asked_s = t
+        enough = needed <= self.options.memory_bytes
+        self._event(t, ws.address, "memory", f"{needed} bytes: "
+                    f"{'enough' if enough else 'not enough'} "
+                    f"(room for {self.options.memory_bytes})")
+        self._send(ws.address, pad([Function.GET_MEMORY, self.options.version,
+                                    0 if enough else 1]))
+
+    def _get_soft_keys(self, ws: WorkingSet, d: bytes, t: float) -> None:
+        o = self.options
+        self._send(ws.address, bytes([Function.GET_NUMBER_OF_SOFT_KEYS, o.navigation_soft_keys,
+                                      0xFF, 0xFF, o.soft_key_width_px, o.soft_key_height_px,
+                                      o.virtual_soft_keys, o.physical_soft_keys]))
+
+    def _get_fonts(self, ws: WorkingSet, d: bytes, t: float) -> None:
+        o = self.options
+        self._send(ws.address, bytes([Function.GET_TEXT_FONT_DATA, 0xFF, 0xFF, 0xFF, 0xFF,
+                                      o.small_fonts, o.large_fonts, o.font_styles]))
+
+    def _get_hardware(self, ws: WorkingSet, d: bytes, t: float) -> None:
+        px = self.options.data_mask_px
+        # boot time unknown (0xFF), 256 colours (2), no touch screen or pointing device
+        self._send(ws.address, bytes([Function.GET_HARDWARE, 0xFF, 2, 0x00]) + u16(px)
+                   + u16(px))
+
+    def _get_supported_objects(self, ws: WorkingSet, d: bytes, t: float) -> None:
+        types = [int(x) for x in ObjectType if INTRODUCED_IN[x] <= self.options.version]
+        self._send(ws.address, pad(bytes([Function.GET_SUPPORTED_OBJECTS, len(types)])
+                                   + bytes(types)))
+
+    def _get_window_mask_data(self, ws: WorkingSet, d: bytes, t: float) -> None:
+        self._send(ws.address, pad([Function.GET_WINDOW_MASK_DATA, 1, 1]))
+
+    def _get_versions(self, ws: WorkingSet, d: bytes, t: float) -> None:
+        extended = d[0] == Function.EXTENDED_GET_VERSIONS
+        labels = self.store.labels(ws.key, extended)[:255]
+        code = Function.EXTENDED_GET_VERSIONS if extended else Function.GET_VERSIONS_RESPONSE
+        self._send(ws.address, pad(bytes([code, len(labels)]) + b"".join(labels)))
+
+    def _label(self, d: bytes) -> bytes:
+        size = EXTENDED_LABEL_LENGTH if d[0] in (Function.EXTENDED_STORE_VERSION,
+                                                 Function.EXTENDED_LOAD_VERSION,
+                                                 Function.EXTENDED_DELETE_VERSION) \
+            else LABEL_LENGTH
+        return bytes(d[1:1 + size])
+
+    def _store_version(self, ws: WorkingSet, d: bytes, t: float) -> None:
+        label = self._label(d)
+        error = 0
+        if ws.pool is None or len(label) not in (LABEL_LENGTH, EXTENDED_LABEL_LENGTH):
+            error = 0x08 if ws.pool is None else 0x02
+        else:
+            self.store.store(ws.key, label, ws.pool.raw)
+            ws.stored_labels.append(label)
+            self._event(t, ws.address, "stored", f"version {_show(label)}, {ws.pool.size} "
+                        f"bytes")
+        self._send(ws.address, pad([d[0], 0xFF, 0xFF, 0xFF, 0xFF, error]))
+
+    def _load_version(self, ws: WorkingSet, d: bytes, t: float) -> None:
+        label = self._label(d)
+        transfers = self.store.load(ws.key, label)
+        error = 0
+        if transfers is None:
+            error = 0x02
+            self._event(t, ws.address, "load refused", f"no version {_show(label)}")
+        else:
+            version = min(ws.version or self.options.version, self.options.version)
+            try:
+                pool = ObjectPool.from_transfers(transfers, version)
+            except VtPoolError as err:
+                error = 0x01
+                self._event(t, ws.address, "load refused", f"version {_show(label)}: {err}")
+            else:
+                self._activate(ws, pool, t, f"loaded version {_show(label)}")
+                ws.loaded_label = label
+        self._send(ws.address, pad([d[0], 0xFF, 0xFF, 0xFF, 0xFF, error]))
+        if not error:
+            self._changed(ws, t, "pool loaded")
+
+    def _delete_version(self, ws: WorkingSet, d: bytes, t: float) -> None:
+        label = self._label(d)
+        found = self.store.delete(ws.key, label)
+        self._event(t, ws.address, "deleted", f"version {_show(label)}"
+                    + ("" if found else ": not stored"))
+        self._send(ws.address, pad([d[0], 0xFF, 0xFF, 0xFF, 0xFF, 0 if found else 0x02]))
+
+    def _transfer(self, ws: WorkingSet, d: bytes, t: float) -> None:
+        if ws.memory_asked_s is None:
+            self._event(t, ws.address, "out of order",
+                        "object pool transfer before get memory")
+        ws.transfers.append(bytes(d[1:]))
+        self._event(t, ws.address, "transferred",
+                    f"{len(d) - 1} bytes ({sum(len(x) for x in ws.transfers)} in all, "
+                    f"transfer {len(ws.transfers)})")
+
+    def _end_of_pool(self, ws: WorkingSet, d: bytes, t: float) -> None:
+        base = ws.pool.raw if ws.pool is not None else ()
+        transfers = tuple(base) + tuple(ws.transfers)
+        total = sum(len(x) for x in transfers)
+        if total > self.options.memory_bytes:
+            ws.transfers.clear()
+            self._event(t, ws.address, "refused", f"out of memory: {total} bytes, room for "
+                        f"{self.options.memory_bytes}")
+            self._send(ws.address, pad([Function.END_OF_OBJECT_POOL,
+                                        int(EndOfPoolError.OUT_OF_MEMORY), 0xFF, 0xFF, 0xFF,
+                                        0xFF, 0]))
+            return
+        if not transfers:
+            err = VtPoolError("end of object pool without a pool",
+                              code=PoolErrorCode.ANY_OTHER)
+            self._event(t, ws.address, "refused", str(err))
+            self._send(ws.address, err.response())
+            return
+        version = min(ws.version or self.options.version, self.options.version)
+        try:
+            pool = ObjectPool.from_transfers(transfers, version)
+        except VtPoolError as err:
+            ws.transfers.clear()
+            self._event(t, ws.address, "refused", str(err))
+            self._send(ws.address, err.response())
+            return
+        ws.transfers.clear()
+        self._activate(ws, pool, t, f"{len(transfers)} transfer(s)")
+        ws.loaded_label = None
+        self._send(ws.address, pad([Function.END_OF_OBJECT_POOL, 0, 0xFF, 0xFF, 0xFF, 0xFF,
+                                    0]))
+        self._changed(ws, t, "pool active")
+
+    def _activate(self, ws: WorkingSet, pool: ObjectPool, t: float, how: str) -> None:
+        ws.pool = pool
+        ws.activated_s = t
+        ws.open_input = None
+        self._event(t, ws.address, "activated",
+                    f"{len(pool)} objects, {pool.size} bytes, version {pool.version}, "
+                    f"sha256 {pool.sha256[:16]}, {how}")
+
+    _STATELESS: ClassVar[dict[int, Callable[[VirtualTerminalServer, WorkingSet, bytes, float],
+                                            None]]] = {
+        Function.GET_MEMORY: _get_memory,
+        Function.GET_NUMBER_OF_SOFT_KEYS: _get_soft_keys,
+        Function.GET_TEXT_FONT_DATA: _get_fonts,
+        Function.GET_HARDWARE: _get_hardware,
+        Function.GET_SUPPORTED_OBJECTS: _get_supported_objects,
+        Function.GET_WINDOW_MASK_DATA: _get_window_mask_data,
+        Function.GET_VERSIONS: _get_versions,
+        Function.EXTENDED_GET_VERSIONS: _get_versions,
+        Function.STORE_VERSION: _store_version,
+        Function.EXTENDED_STORE_VERSION: _store_version,
+        Function.LOAD_VERSION: _load_version,
+        Function.EXTENDED_LOAD_VERSION: _load_version,
+        Function.DELETE_VERSION: _delete_version,
+        Function.EXTENDED_DELETE_VERSION: _delete_version,
+        Function.OBJECT_POOL_TRANSFER: _transfer,
+        Function.END_OF_OBJECT_POOL: _end_of_pool,
+    }
+
+    # -- the operator ----------------------------------------------------------------------------
+
+    def key_event(self, object_id: int, activation: KeyActivation, now_s: float,
+                  address: int | None = None) -> None:
+        """Report a soft key or button activation to its working set.
+
+        Raises
+        ------
+        ValueError
+            No working set shows ``object_id``, or it is not a key or button.
+        """
+        ws = self._working_set(address)
+        obj = ws.resolve(object_id)
+        if obj is None or obj.type not in (T.KEY, T.BUTTON):
+            raise ValueError(f"object {object_id} is not a soft key or button of the working "
+                             f"set at 0x{ws.address:02X}")
+        if obj.type == T.BUTTON and not is_enabled(obj):
+            self._event(now_s, ws.address, "operator", f"button {object_id} is disabled: "
+                        f"{activation.name.lower()} not sent")
+            return
+        parent = ws.soft_key_mask if obj.type == T.KEY else self._parent_shown(ws, object_id)
+        function = Function.SOFT_KEY_ACTIVATION if obj.type == T.KEY else \
+            Function.BUTTON_ACTIVATION
+        self._send(ws.address, bytes([function, activation]) + u16(obj.object_id)
+                   + u16(parent) + bytes([obj["key_code"], 0xFF]))
+        self._event(now_s, ws.address, "operator",
+                    f"{'soft key' if obj.type == T.KEY else 'button'} {obj.object_id} "
+                    f"({ws.label(obj.object_id)!r}) {activation.name.lower()}")
+
+    def enter_number(self, object_id: int, raw: int, now_s: float,
+                     address: int | None = None) -> None:
+        """The operator enters ``raw`` (the object's units before offset and scale) into an
+        input number, list or boolean: the value is set and sent (select input object,
+        change numeric value, input closed).
+
+        Raises
+        ------
+        ValueError
+            Not an input object, disabled, not shown, or the value outside its range.
+        """
+        ws = self._working_set(address)
+        obj = self._input(ws, object_id, (T.INPUT_NUMBER, T.INPUT_LIST, T.INPUT_BOOLEAN))
+        if obj.type == T.INPUT_NUMBER:
+            low, high = obj["min_value"], obj["max_value"]
+        elif obj.type == T.INPUT_LIST:
+            low, high = 0, max(0, len(obj["items"]) - 1)
+        else:
+            low, high = 0, 1
+        if not low <= raw <= high:
+            raise ValueError(f"{raw} is outside {low} .. {high} of input object {object_id}")
+        ref = obj.get("variable_reference", NO_OBJECT)
+        holder = ws.obj(ref) if ref != NO_OBJECT else None
+        (holder or obj).attrs["value"] = raw
+        self._send(ws.address, pad(bytes([Function.VT_SELECT_INPUT_OBJECT]) + u16(object_id)
+                                   + bytes([1, 1])))
+        self._send(ws.address, bytes([Function.VT_CHANGE_NUMERIC_VALUE]) + u16(object_id)
+                   + b"\xff" + u32(raw))
+        self._send(ws.address, pad(bytes([Function.VT_SELECT_INPUT_OBJECT]) + u16(object_id)
+                                   + bytes([1, 0])))
+        self._event(now_s, ws.address, "operator", f"entered {raw} into {object_id}")
+        self._changed(ws, now_s, f"operator entered {raw} into {object_id}")
+
+    def enter_string(self, object_id: int, text: str, now_s: float,
+                     address: int | None = None) -> None:
+        """The operator types ``text`` into an input string (ISO 8859-1)."""
+        ws = self._working_set(address)
+        obj = self._input(ws, object_id, (T.INPUT_STRING,))
+        raw = text.encode("latin-1")
+        ref = obj.get("variable_reference", NO_OBJECT)
+        holder = ws.obj(ref) if ref != NO_OBJECT else None
+        target = holder or obj
+        if len(raw) > target["length"]:
+            raise ValueError(f"{text!r} is longer than input string {object_id}'s "
+                             f"{target['length']} characters")
+        target.attrs["value"] = raw + b" " * (target["length"] - len(raw))
+        self._send(ws.address, pad(bytes([Function.VT_CHANGE_STRING_VALUE]) + u16(object_id)
+                                   + bytes([len(raw)]) + raw))
+        self._event(now_s, ws.address, "operator", f"typed {text!r} into {object_id}")
+        self._changed(ws, now_s, f"operator typed into {object_id}")
+
+    def escape(self, now_s: float, address: int | None = None) -> None:
+        """The operator's ESC: closes the open input field (ESC message, function 0x04)."""
+        ws = self._working_set(address)
+        oid = ws.open_input if ws.open_input is not None else NO_OBJECT
+        error = 0 if ws.open_input is not None else 0x01
+        ws.open_input = None
+        self._send(ws.address, pad(bytes([Function.VT_ESC]) + u16(oid) + bytes([error])))
+        self._event(now_s, ws.address, "operator", "ESC")
+
+    def _working_set(self, address: int | None) -> WorkingSet:
+        ws = self.sessions.get(address) if address is not None else self.active_working_set
+        if ws is None or ws.pool is None:
+            who = f"at 0x{address:02X}" if address is not None else "active"
+            raise ValueError(f"no working set {who} with an active pool on the VT")
+        return ws
+
+    def _input(self, ws: WorkingSet, object_id: int,
+               types: tuple[ObjectType, ...]) -> VtObject:
+        obj = ws.resolve(object_id)
+        if obj is None or obj.type not in types or obj.type not in INPUTS:
+            raise ValueError(f"object {object_id} is not an input "
+                             f"{'/'.join(t.name.lower() for t in types)}")
+        if not is_enabled(obj):
+            raise ValueError(f"input object {object_id} is disabled")
+        if not ws.is_shown(object_id):
+            raise ValueError(f"input object {object_id} is not on the active mask")
+        return obj
+
+    def _parent_shown(self, ws: WorkingSet, object_id: int) -> int:
+        for obj, _x, _y, parent in ws.visible():
+            if obj.object_id == object_id:
+                return parent
+        return ws.active_mask
+
+
+_COMMAND_FUNCTIONS = frozenset(range(0xA0, 0xC0))
+
+
+def _show(label: bytes) -> str:
+    return repr(label.decode("latin-1").rstrip())
+
+
+VT_FUNCTION = 29
+"""ISO 11783-1 function code of a virtual terminal."""
+VT_ADDRESS = 0x26
+"""The VT's preferred address (38: the first VT of ISO 11783-5's preferred addresses)."""
+VT_NAME = IsobusName(identity_number=0x1E7, manufacturer_code=0, function=VT_FUNCTION,
+                     device_class=0, industry_group=2)
+"""The rig's VT NAME (identity number arbitrary, manufacturer code 0)."""
+
+
+def add_vt(network: IsobusNetwork, options: VtOptions | None = None,
+           store: VersionStore | None = None, name: IsobusName = VT_NAME,
+           address: int = VT_ADDRESS) -> VirtualTerminalServer:
+    """Host the VT on ``network`` (the tractor's, beside its TC) and run it.
+
+    This is all the tractor and ``hil isobus serve`` need::
+
+        vt = add_vt(tractor.network, VtOptions(version=4), VersionStore(out / "vt-store"))
+    """
+    cf = network.add(name, address, "VT")
+    vt = VirtualTerminalServer(cf, options, store)
+    cf.run(vt)
+    return vt
