@@ -1,11 +1,13 @@
 """What a qualification prints while it runs and at its end, as a pytest plugin of its own.
 
-The session (:class:`hil.pytest_plugin.QualificationSession`) keeps the measurements and
-decides the verdict; this plugin only prints them: under each test its control measurements and
-one line for its bus conformance checks (:func:`hil.console.test_lines`), and at the end the
-verdict with a one-screen summary (:func:`hil.console.summary_lines`). The lines themselves are
-formatted in :mod:`hil.console`, so ``hil qualify`` and a plain ``pytest --hil-dut`` print the
-same.
+The session (:class:`hil.qualification.session.QualificationSession`) keeps the measurements
+and decides the verdict; this plugin only prints them: under each test its control measurements
+and one line for its bus conformance checks (:func:`hil.console.test_lines`), and at the end the
+verdict with a one-screen summary (:func:`hil.console.summary_lines`) and how many measurements
+were judged by a limit and how many were information only
+(:func:`hil.qualification.summary.summary_line`). The lines themselves are formatted in
+:mod:`hil.console` and :mod:`hil.qualification.summary`, so ``hil qualify`` and a plain
+``pytest --hil-dut`` print the same.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from typing import Any, Protocol
 import pytest
 
 from hil.console import summary_lines, test_lines
+from hil.qualification.summary import summary, summary_line
 
 #: why report.html could not be written (set by the session, printed in the summary)
 REPORT_ERROR = pytest.StashKey[str]()
@@ -89,7 +92,10 @@ class QualificationConsole:
         terminalreporter.write_sep("=", f"agrihil qualification of {session.name}: "
                                         f"{session.verdict().upper()}")
         not_run = [n for n in session.planned if n not in session.completed_tests()]
-        for line in summary_lines(session.measurements, session.tests, not_run=not_run):
+        lines = summary_lines(session.measurements, session.tests, not_run=not_run)
+        if session.measurements:   # after the counts: how many of them could fail the DUT
+            lines.insert(1, summary_line(summary(session.measurements)))
+        for line in lines:
             terminalreporter.write_line(line)
         # hil qualify writes into a staging directory and moves the result into its parent
         shown = (session.report_dir.parent

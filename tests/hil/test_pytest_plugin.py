@@ -106,6 +106,15 @@ def test_plugin_runs_measures_and_judges(tmp_path: Path) -> None:
     props = {p.get("name"): p.get("value")
              for p in ET.parse(tmp_path / "junit.xml").iter("property")}
     assert props["flow.step.overshoot[target_gps=23]"] == "1 % (pass)"
+    # the summary says how many measurements a limit judged and how many were information
+    # only (issue 43), in the record and on the console, counted from the measurements
+    ms = record["measurements"]
+    judged = sum(1 for m in ms if m["low"] is not None or m["high"] is not None)
+    assert judged >= 2          # the two of the suite, limited by the profile
+    assert record["summary"] == {"measurements": len(ms), "judged": judged,
+                                 "information_only": len(ms) - judged}
+    assert (f"judged: {judged} of {len(ms)} measurements had a limit; "
+            f"{len(ms) - judged} information only (no limit)") in out
 
 
 def test_plugin_passes_a_good_dut(tmp_path: Path) -> None:
