@@ -38,10 +38,10 @@ from hil.cli.args import (
     prepare_out_dir,
 )
 from hil.cli.phases import phase
-from hil.cli.suites import suite_location
 from hil.dut.build import ensure_built, with_build_id
 from hil.dut.profile import DutProfile, load_profile
 from hil.errors import ConfigError, HilError
+from hil.ownrig.cli_support import check_profile_rig, register_option_rig, suite_location_of
 from hil.record.atomic import write_json_atomic
 from hil.record.staging import Staging, signals_held
 
@@ -75,6 +75,9 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
     qualify.add_argument("--build-id", default=None,
                          help="the DUT's build id for the record (a CI job passes its commit); "
                               "default: the profile's [dut] build_id")
+    qualify.add_argument("--rig", metavar="FILE", default=None,
+                         help="a rig of your own: its rig file (the profile's [dut] rig names "
+                              "it by the file's name)")
     # --- campaign (issue 15): reproduce one campaign sample with its dispersed rig -----------
     qualify.add_argument("--rig-override", metavar="KEY=VALUE", action="append", default=[],
                          help="override a rig config parameter (dotted key, TOML value) on top "
@@ -103,7 +106,7 @@ def check_suites(text: str) -> list[str]:
 def pytest_args(args: argparse.Namespace, out: Path, rig: str) -> list[str]:
     """pytest's argv for the suites of ``rig`` only (the other rigs' suites are not even
     collected), writing into ``out``."""
-    suites, ini = suite_location(rig)
+    suites, ini = suite_location_of(rig)
     argv = [str(suites), "-c", str(ini), "--rootdir", str(ini.parent),
             "-p", "no:cacheprovider", "-p", "no:benchmark",
             "--hil-dut", str(args.profile), "--hil-bus", args.bus, "--hil-clock", args.clock,
@@ -201,7 +204,9 @@ def _prepare(args: argparse.Namespace) -> tuple[DutProfile, Staging]:
     """Check every option and build the DUT: nothing in ``--out`` changes before this ends."""
     # every option is checked before anything runs: a bad one is exit 2, never the DUT's fault
     # a bad profile (or build id) never starts a run
+    own_rig = register_option_rig(getattr(args, "rig", None))   # before the profile names it
     profile = with_build_id(load_profile(args.profile), args.build_id)
+    check_profile_rig(own_rig, profile)
     from hil.cli.profile import refuse_problems
 
     refuse_problems(profile)                       # what `hil profile check` would report
@@ -219,7 +224,7 @@ def _prepare(args: argparse.Namespace) -> tuple[DutProfile, Staging]:
                       inprocess_twin=bool(profile.launch.inprocess))
     out = prepare_out_dir(args.out)
     rig = profile.dut.rig
-    suite_location(rig)                            # a rig without suites is a setup error
+    suite_location_of(rig)                         # a rig without suites is a setup error
     _build(args, profile)                          # a DUT that cannot start never runs
     return profile, Staging(out, prefix=STAGING_PREFIX, outputs=OUTPUTS,
                             record="record.json")

@@ -41,6 +41,7 @@ from hil.dut.build import with_build_id
 from hil.dut.factory import make_dut, profile_run_options
 from hil.dut.profile import DutProfile, load_profile
 from hil.errors import ConfigError, HilError
+from hil.ownrig.cli_support import check_profile_rig, register_option_rig
 from hil.record.atomic import write_json_atomic
 from hil.record.staging import Staging, signals_held
 from hil.rig import Rig, RunOptions, available_rigs, load_rig, run_scenario
@@ -55,8 +56,9 @@ RECORD = "record.json"
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     run = subparsers.add_parser("run", help="run one scenario of a rig against a DUT")
-    run.add_argument("--rig", help=f"rig name ({', '.join(available_rigs())}); "
-                                   "taken from the profile when --dut is one")
+    run.add_argument("--rig", help=f"rig name ({', '.join(available_rigs())}) or a rig file "
+                                   "(a rig of your own, *.toml); taken from the profile when "
+                                   "--dut is one")
     run.add_argument("--list-scenarios", action="store_true",
                      help="print the rig's scenarios, one per line, and exit")
     run.add_argument("--dut", help="the controller under test: a DUT profile (TOML) or "
@@ -101,8 +103,10 @@ def _run(args: argparse.Namespace) -> int:
     if args.bus == "inline" and args.clock != "lockstep":
         raise ConfigError("the inline bus calls the controller inside the lockstep loop: use "
                           "--clock lockstep, or a bus (softbus) for real time", key="--bus")
+    own_rig = register_option_rig(args.rig)     # a rig file: known before a profile names it
     profile = load_profile(args.dut) if _is_profile(args.dut) else None
     if profile is not None:
+        check_profile_rig(own_rig, profile)
         from hil.cli.profile import refuse_problems
 
         refuse_problems(profile)                   # what `hil profile check` would report
