@@ -67,6 +67,8 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
     p.add_argument("--suite", default="fast", help="comma-separated suites (default: fast)")
     p.add_argument("-k", dest="keyword", default=None,
                    help="pytest -k expression (it must select at least one test)")
+    p.add_argument("--rig", metavar="FILE", default=None,
+                   help="a rig of your own: its rig file (the profile's [dut] rig names it)")
     p.add_argument("--dispersion", default=None, metavar="FILE",
                    help="dispersion file (default: the rig's shipped dispersion.toml; "
                         "'none': nominal rig parameters, seeds only)")
@@ -144,8 +146,11 @@ def check_campaign_options(args: argparse.Namespace) -> tuple[Any, Any]:
     from hil.campaign.dispersion import load_dispersion
     from hil.cli.qualify import check_suites
     from hil.dut.profile import load_profile
+    from hil.ownrig.cli_support import check_profile_rig, register_option_rig
 
+    own_rig = register_option_rig(getattr(args, "rig", None))   # before the profile names it
     profile = load_profile(args.profile)
+    check_profile_rig(own_rig, profile)
     check_suites(args.suite)
     check_keyword(args.keyword)
     check_bus_spec(args.bus)

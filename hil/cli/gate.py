@@ -77,11 +77,17 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
                                            "campaign records only: a mean shift is a "
                                            "regression beyond this fraction of the "
                                            "tolerance band (default: 0.25)"))
+    gate.add_argument("--rig", metavar="FILE", default=None,
+                      help="the rig file of a rig of your own (its measurements' names, for "
+                           "--tolerance)")
     gate.set_defaults(func=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
     from hil.campaign.record import is_campaign
+    from hil.ownrig.cli_support import register_option_rig
+
+    register_option_rig(args.rig)       # a rig of your own: its measurements' names known
 
     if args.update_baseline and args.baseline:
         check_writable_file(args.baseline, "--baseline", make_dirs=True)

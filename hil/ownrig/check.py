@@ -56,7 +56,7 @@ def try_instance(plan: RigPlan) -> None:
     """
     spec = plan.loaded.spec
     try:
-        plant = FmuPlant(plan.fmu, spec.fmu.parameters, spec.fmu.step_ms / 1000.0,
+        plant = FmuPlant(plan.fmu, plan.loaded.fmu_parameters, spec.fmu.step_ms / 1000.0,
                          plan.watched())
     except ConfigError:
         raise

@@ -303,6 +303,9 @@ class RigFile:
     bitrate_bps: int = 250_000
     scenarios: str = ""
     dispersion: str = ""
+    #: named real-valued parameters of the rig (a campaign's dispersion draws them): a string
+    #: in ``fmu.parameters`` names one (``B = ["motor_gain", 0.0, ...]``)
+    parameters: dict[str, float] = field(default_factory=dict)
     inputs: dict[str, InputSpec] = field(default_factory=dict)
     controlled: dict[str, ControlledSpec] = field(default_factory=dict)
 
@@ -336,6 +339,34 @@ class LoadedRigFile:
     scenarios: Path | None
     dispersion: Path | None
     eds: dict[str, Path]
+    #: ``fmu.parameters`` with the names of ``parameters`` replaced by their values
+    fmu_parameters: dict[str, Any]
+
+
+def resolve_parameters(spec: RigFile, label: str) -> dict[str, Any]:
+    """``fmu.parameters`` with every string (a name of ``parameters``) replaced by its value.
+
+    Raises
+    ------
+    ConfigError
+        A string that names no parameter (naming the key and the element).
+    """
+    def one(value: Any, key: str) -> Any:
+        if not isinstance(value, str):
+            return value
+        if value not in spec.parameters:
+            raise ConfigError(f"{value!r} names no rig parameter (parameters: "
+                              f"{', '.join(spec.parameters) or 'none'})", path=label, key=key)
+        return spec.parameters[value]
+
+    out: dict[str, Any] = {}
+    for name, value in spec.fmu.parameters.items():
+        key = f"fmu.parameters.{name}"
+        if isinstance(value, list):
+            out[name] = [one(v, f"{key}[{i}]") for i, v in enumerate(value)]
+        else:
+            out[name] = one(value, key)
+    return out
 
 
 def _resolve(base: Path, text: str) -> Path:
@@ -377,4 +408,5 @@ def load_rig_file(path: str | Path, overrides: dict[str, Any] | None = None, *,
             if not eds[name].is_file():
                 raise ConfigError(f"EDS not found: {eds[name]}", path=label,
                                   key=f"devices.{name}.eds")
-    return LoadedRigFile(spec, path, label, dbc, fmu, scenarios, dispersion, eds)
+    return LoadedRigFile(spec, path, label, dbc, fmu, scenarios, dispersion, eds,
+                         resolve_parameters(spec, label))

@@ -239,7 +239,7 @@ def build_plan(loaded: LoadedRigFile) -> RigPlan:
     """
     spec, src = loaded.spec, loaded.source
     fmu = FmuDescription(loaded.fmu, src)
-    fmu.parameter_refs(spec.fmu.parameters, "fmu.parameters")
+    fmu.parameter_refs(loaded.fmu_parameters, "fmu.parameters")
     try:
         db = BusDatabase(loaded.dbc)
     except (FrameError, ConfigError, OSError) as exc:

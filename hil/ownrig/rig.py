@@ -13,9 +13,11 @@ frame of the controller reaches the rig: a cut wire).
 
 from __future__ import annotations
 
+import hashlib
 import json
 import re
 from collections.abc import Mapping
+from dataclasses import asdict, make_dataclass
 from functools import cache
 from pathlib import Path
 from typing import Any, ClassVar
@@ -38,6 +40,26 @@ from hil.rig.scenario import Scenario
 def trace_name(prefix: str, text: str) -> str:
     """A trace's name: ``prefix`` and ``text`` in letters, digits and ``_`` (``y[1]`` → ``y_1``)."""
     return f"{prefix}_{re.sub(r'[^A-Za-z0-9_]+', '_', text).strip('_')}"
+
+
+def config_view(plan: RigPlan) -> object:
+    """The rig's config as campaigns see it: a frozen dataclass with ``parameters`` (the rig
+    file's named parameters) and ``fmu.parameters`` (the FMU's scalar real parameters), so a
+    dispersion file names them ``parameters.motor_gain`` or ``fmu.parameters.K``; and the rig
+    file's hash (every key, for the record)."""
+    spec = plan.loaded.spec
+    own = make_dataclass("RigParameters", [(k, float) for k in spec.parameters], frozen=True)
+    scalars = {k: v for k, v in plan.loaded.fmu_parameters.items()
+               if isinstance(v, float) and k.isidentifier()}
+    fmu_params = make_dataclass("FmuParameters", [(k, float) for k in scalars], frozen=True)
+    fmu = make_dataclass("FmuConfig", [("path", str), ("step_ms", float),
+                                       ("parameters", fmu_params)], frozen=True)
+    view = make_dataclass("OwnRigConfig", [("name", str), ("parameters", own), ("fmu", fmu),
+                                           ("rig_file_sha256", str)], frozen=True)
+    text = json.dumps(asdict(spec), sort_keys=True, default=str)
+    return view(spec.name, own(**spec.parameters),
+                fmu(str(plan.loaded.fmu), spec.fmu.step_ms, fmu_params(**scalars)),
+                hashlib.sha256(text.encode()).hexdigest())
 
 
 def truth_units(plan: RigPlan) -> dict[str, str]:
@@ -85,8 +107,10 @@ class OwnRig(Rig):
 
     @classmethod
     def load_config(cls, overrides: Mapping[str, Any] | None = None, *,
-                    source: str = "") -> RigPlan:
-        return cls.plan(overrides, source)
+                    source: str = "") -> object:
+        """The rig file's dispersable parameters as a config object (see :func:`config_view`),
+        with ``overrides`` (a profile's ``[rig]``, a campaign sample's draws) applied."""
+        return config_view(cls.plan(overrides, source))
 
     @classmethod
     def bus_contract(cls, overrides: Mapping[str, Any] | None = None,
@@ -100,7 +124,7 @@ class OwnRig(Rig):
         self.plan_ = plan
         spec = plan.loaded.spec
         self.codec = ContractCodec(plan.contract(), plan.binding(), plan.database)
-        self.plant = FmuPlant(plan.fmu, spec.fmu.parameters, self.physics_period_s,
+        self.plant = FmuPlant(plan.fmu, plan.loaded.fmu_parameters, self.physics_period_s,
                               plan.watched())
         self.input_values = {name: inp.initial for name, inp in spec.inputs.items()}
         for name, (_, ref) in plan.inputs.items():
