@@ -173,16 +173,29 @@ def problems(objects: Sequence[DdopObject], *, version: int = 4) -> list[DdopErr
                     f"DPD or DPT objects", element, parent=element.parent_id)
 
     # Every element must reach the device element through its parents (no cycles, no islands).
+    # Each element's answer is kept, so that a chain is walked once in all, not once per
+    # element on it: linear in the pool (a 6,000-element chain took seconds when it was not).
+    reaches: dict[int, bool] = {}
     for element in elements:
-        visited: set[int] = set()
+        path: list[int] = []
+        on_path: set[int] = set()
         current: DdopObject | None = element
+        ok = True
         while isinstance(current, DeviceElement) and current.element_type != ElementType.DEVICE:
-            if current.object_id in visited:
-                err("the element's parent chain loops back on itself", element,
-                    parent=element.parent_id)
+            if current.object_id in reaches:
+                ok = reaches[current.object_id]
                 break
-            visited.add(current.object_id)
+            if current.object_id in on_path:
+                ok = False
+                break
+            on_path.add(current.object_id)
+            path.append(current.object_id)
             current = by_id.get(current.parent_id)
+        for object_id in path:
+            reaches[object_id] = ok
+        if not ok:
+            err("the element's parent chain loops back on itself", element,
+                parent=element.parent_id)
 
     for obj in objects:
         if isinstance(obj, ProcessData | Property):

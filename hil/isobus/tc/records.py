@@ -1,4 +1,8 @@
-"""What the TC keeps of a run: every value it received, acknowledgements, connection events."""
+"""What the TC keeps of a run: every value it received, acknowledgements, connection events.
+
+The server hands each record to its ``recorder`` as it happens, and keeps it in memory too
+unless told not to (``keep_records=False``: what ``hil isobus serve`` does, writing them to
+``tc.jsonl`` instead, so that a long serve does not grow)."""
 
 from __future__ import annotations
 
@@ -55,7 +59,19 @@ class EventKind(Enum):
     DELETED = "deleted"
     TIMED_OUT = "timed out"
     REJECTED_MESSAGE = "rejected message"
+    """A message the TC does not take (before a working-set master, malformed, from an address
+    that never claimed); the first per address and second, then a count."""
     SERVER_RESTARTED = "server restarted"
+    SESSION_ENDED = "session ended"
+    """The client's address changed hands (another NAME claimed it) or its NAME moved: the
+    session belonged to the NAME and ends; the newcomer must connect on its own."""
+    CLIENT_ERROR = "client error"
+    """Handling a client's message or its set-points raised: its session ends, the TC goes on
+    (a TC that isolates its clients, as the rig's tractor does)."""
+    ADDRESS_LOST = "address lost"
+    """The TC lost its own address to a lower NAME (ISO 11783-5): every session ends."""
+    ADDRESS_CLAIMED = "address claimed"
+    """The TC holds an address (again): its status goes out from there."""
 
 
 @dataclass(frozen=True)
@@ -66,3 +82,7 @@ class Event:
     address: int | None
     kind: EventKind
     detail: str = ""
+
+
+Record = Event | LoggedValue | ReceivedAcknowledge
+"""Anything the TC records."""

@@ -4,8 +4,13 @@ The server runs on an :class:`~hil.isobus.port.IsobusPort` and keeps its own tim
 :meth:`TaskControllerServer.tick`. What a client sees:
 
 - the TC status (process data command 0xE) every 2 s, broadcast;
-- on its working-set master message, a new session and a request for its version; the
-  version message (v4 and the options, booms, sections and channels the TC supports) on request;
+- on its working-set master message, a new session, for the NAME that claimed the client's
+  address (no claim, no session; never for 0xFE or 0xFF);
+- the version message (v4 and the options, booms, sections and channels the TC supports) when
+  the client asks, and then, once, the TC's request for the client's version: in the order of
+  ISO 11783-10's connection procedure (the client asks first, after the TC status), which
+  AgIsoStack++'s client checks ("Server requested version information at a strange time" when
+  the TC asks before it has answered);
 - the language command (PGN 0xFE0F) when it requests it;
 - structure and localization labels answered from a :class:`~hil.isobus.tc.store.PoolStore`,
   so a client whose pool is known skips the transfer;
@@ -16,14 +21,31 @@ The server runs on an :class:`~hil.isobus.port.IsobusPort` and keeps its own tim
   then set-points from a :data:`~hil.isobus.tc.setpoints.SetpointSource`;
 - every value it sends logged (:attr:`TaskControllerServer.values`), its process data
   acknowledgements answered or recorded;
-- its session dropped after 6 s without its client task message or working-set master;
-- a negative acknowledgement (PGN 0xE800) for process data before its working-set master.
+- its session dropped after 6 s without its client task message or working-set master, and
+  ended at once when another NAME claims its address or its NAME moves (the session belongs to
+  the NAME: the newcomer's values are not the implement's, and it gets no set-points);
+- a negative acknowledgement (PGN 0xE800) for process data before its working-set master, at
+  most one per address and second (the rest counted, :mod:`hil.isobus.tc.limiter`).
+
+A pool the TC cannot use though it follows the standard's rules (the rig's tractor needs a
+working width on every section) is refused at activation by the ``usable`` check with the
+standard's error codes, like any other. With ``isolate_errors`` an exception while handling a
+client's message or computing its set-points ends that client's session (event
+``client error``), not the TC. With a ``checker`` (an executor) the pool is parsed and checked
+off the network's thread, so the tractor ECU's messages stay on time while a large pool is
+checked; the activate response goes out when the check is done.
+
+When the TC loses its own address to a lower NAME (ISO 11783-5) every session ends and the
+event ``address lost`` says so; the network re-claims another address for a self-configurable
+TC NAME (``address claimed`` when it holds one), and clients find the TC again by its status.
 """
 
 from __future__ import annotations
 
 import math
+from collections import Counter
 from collections.abc import Callable
+from concurrent.futures import Executor, Future
 from dataclasses import dataclass, field
 
 from hil.errors import FrameError
@@ -35,9 +57,10 @@ from hil.isobus.ddop import (
     ObjectPool,
     PoolError,
 )
-from hil.isobus.port import GLOBAL_ADDRESS, IsobusPort, Received
+from hil.isobus.port import GLOBAL_ADDRESS, NULL_ADDRESS, IsobusPort, Received
 from hil.isobus.process_data import AckError, Command, ElementCommand
-from hil.isobus.tc.records import Event, EventKind, LoggedValue, ReceivedAcknowledge
+from hil.isobus.tc.limiter import RateLimiter
+from hil.isobus.tc.records import Event, EventKind, LoggedValue, ReceivedAcknowledge, Record
 from hil.isobus.tc.setpoints import SetpointRequest, SetpointSource, no_setpoints
 from hil.isobus.tc.store import ClientKey, PoolStore
 from hil.isobus.tc.triggers import TriggerPlan
@@ -45,6 +68,13 @@ from hil.isobus.tc.triggers import TriggerPlan
 ACKNOWLEDGEMENT_PGN = 0xE800
 REQUEST_PGN = 0xEA00
 LANGUAGE_COMMAND_PGN = 0xFE0F
+ADDRESS_CLAIMED_PGN = 0xEE00
+
+UNSOLICITED_PERIOD_S = 1.0
+"""Per address, at most one rejected message is logged (and one NACK sent) per this period;
+the rest are counted and the count logged when the period ends."""
+CHECK_POLL_S = 0.005
+"""How often the TC looks whether a pool checked off its thread is done."""
 
 STATUS_PERIOD_S = 2.0
 """The TC status period (ISO 11783-10)."""
@@ -91,6 +121,10 @@ class ClientSession:
     connected_s: float
     last_seen_s: float
     version: int | None = None
+    #: whether the TC asked for the client's version (once, after answering the client's)
+    version_asked: bool = False
+    #: a pool being checked off the network's thread: (future of the pool, its bytes)
+    checking: tuple[Future[ObjectPool], bytes] | None = None
     transfer: bytearray = field(default_factory=bytearray)
     announced_size: int | None = None
     pool: ObjectPool | None = None
@@ -161,6 +195,19 @@ class TaskControllerServer:
         (at 509a920c) hears an acknowledgement from its TC only when addressed to it
         (``process_can_message_for_global_and_partner_callbacks``), so it never sees a global
         NACK and keeps sending after a TC restart shorter than its 6 s status timeout.
+    usable : callable, optional
+        ``usable(pool)`` raises a :class:`~hil.isobus.ddop.DdopError` (with the activate
+        response's codes) for a valid pool this TC cannot work with; checked at activation.
+    isolate_errors : bool
+        End a client's session on an exception its messages or set-points raise, instead of
+        raising it (see the module docstring).
+    keep_records : bool
+        Keep :attr:`values`, :attr:`acknowledgements` and :attr:`events` in memory (the
+        ``recorder`` and :attr:`counts` get them either way).
+    recorder : callable, optional
+        Called with every record (event, value, acknowledgement) as it happens.
+    checker : Executor, optional
+        Parse and check received pools there (a thread) instead of on the network's thread.
     """
 
     def __init__(self, port: IsobusPort, *, options: ServerOptions | None = None,
@@ -168,7 +215,11 @@ class TaskControllerServer:
                  triggers: TriggerPlan | None = None, setpoint_refresh_s: float | None = None,
                  on_value: Callable[[LoggedValue], None] | None = None,
                  language_command: bytes | None = DEFAULT_LANGUAGE_COMMAND,
-                 nack_to_client: bool = False) -> None:
+                 nack_to_client: bool = False,
+                 usable: Callable[[ObjectPool], None] | None = None,
+                 isolate_errors: bool = False, keep_records: bool = True,
+                 recorder: Callable[[Record], None] | None = None,
+                 checker: Executor | None = None) -> None:
         if language_command is not None and len(language_command) != 8:
             raise ValueError(f"language command payload is {len(language_command)} bytes, not 8")
         self.port = port
@@ -180,10 +231,22 @@ class TaskControllerServer:
         self.on_value = on_value
         self.language_command = language_command
         self.nack_to_client = nack_to_client
+        self.usable = usable
+        self.isolate_errors = isolate_errors
+        self.keep_records = keep_records
+        self.recorder = recorder
+        self.checker = checker
         self.sessions: dict[int, ClientSession] = {}
         self.values: list[LoggedValue] = []
         self.acknowledgements: list[ReceivedAcknowledge] = []
         self.events: list[Event] = []
+        #: how many values, acknowledgements and events were recorded (kept or not), and
+        #: events by kind
+        self.counts: Counter[str] = Counter()
+        self.event_counts: Counter[EventKind] = Counter()
+        self._unsolicited = RateLimiter(UNSOLICITED_PERIOD_S)
+        #: the address the TC held at its last look (to see it lost)
+        self._held: int | None = None
         self.status = pd.ServerStatus.NONE
         self._next_status_s: float | None = None
         self._last_status_s: float | None = None
@@ -195,14 +258,20 @@ class TaskControllerServer:
         port.subscribe(pd.PROCESS_DATA_PGN, self._on_process_data)
         port.subscribe(pd.WORKING_SET_MASTER_PGN, self._on_working_set_master)
         port.subscribe(REQUEST_PGN, self._on_request)
+        port.subscribe(ADDRESS_CLAIMED_PGN, self._on_address_claim)
 
     # --- timers -----------------------------------------------------------------------------
 
     def tick(self, now_s: float) -> None:
         """Advance to ``now_s``: status when due, timeouts, triggers and set-points."""
         self._now_s = now_s
+        self._watch_address(now_s)
+        self._report_unsolicited(now_s)
         if self._down(now_s) or self.port.address is None:
             return
+        for session in list(self.sessions.values()):
+            if session.checking is not None and session.checking[0].done():
+                self._guarded(session, now_s, self._finish_activation, session, now_s)
         changed = self._status_changed and (
             self._last_status_s is None or now_s - self._last_status_s >= MIN_STATUS_INTERVAL_S)
         periodic = self._next_status_s is not None and now_s >= self._next_status_s
@@ -225,10 +294,10 @@ class TaskControllerServer:
                             f"{now_s - session.last_seen_s:.1f} s")
                 continue
             if session.pool is not None:
-                self._send_triggers(session)
+                self._guarded(session, now_s, self._send_triggers, session)
         if self._next_setpoints_s is None or now_s >= self._next_setpoints_s - 1e-9:
             for session in list(self.sessions.values()):
-                self._send_setpoints(session, now_s)
+                self._guarded(session, now_s, self._send_setpoints, session, now_s)
             if self._next_setpoints_s is None:
                 self._next_setpoints_s = now_s
             while self._next_setpoints_s <= now_s + 1e-9:
@@ -237,16 +306,23 @@ class TaskControllerServer:
     def next_due(self, now_s: float) -> float:
         """When the TC has something to do: its status (a changed one after the least
         interval), a client's timeout, triggers to send, the next set-point round."""
+        if self.port.address != self._held:
+            return now_s                  # the address changed: say so
+        limiter = self._unsolicited.due()
         if self.port.address is None:
-            return math.inf               # the network ticks it once the claim settles
+            # the network ticks it once the claim settles
+            return max(now_s, limiter)
         if self._down(now_s):
             assert self._down_until_s is not None
-            return self._down_until_s
+            return max(now_s, min(self._down_until_s, limiter))
         due = now_s if self._next_status_s is None else self._next_status_s
+        due = min(due, limiter)
         if self._status_changed:
             due = min(due, (self._last_status_s or -math.inf) + MIN_STATUS_INTERVAL_S)
         for session in self.sessions.values():
             due = min(due, session.last_seen_s + CLIENT_TIMEOUT_S)
+            if session.checking is not None:
+                due = min(due, now_s + CHECK_POLL_S)
             if session.pool is not None:
                 due = min(due, now_s if session.triggers_due else
                           (self._next_setpoints_s if self._next_setpoints_s is not None
@@ -293,7 +369,56 @@ class TaskControllerServer:
 
     def _event(self, time_s: float, address: int | None, kind: EventKind, detail: str = "",
                ) -> None:
-        self.events.append(Event(time_s, address, kind, detail))
+        event = Event(time_s, address, kind, detail)
+        self.counts["events"] += 1
+        self.event_counts[kind] += 1
+        if self.keep_records:
+            self.events.append(event)
+        if self.recorder is not None:
+            self.recorder(event)
+
+    def _reject(self, time_s: float, address: int, detail: str, *, nack: bool) -> None:
+        """Log a rejected message (and NACK it) unless this address had one this period."""
+        if not self._unsolicited.offer(address, time_s):
+            return
+        self._event(time_s, address, EventKind.REJECTED_MESSAGE, detail)
+        if nack:
+            self._nack(address)
+
+    def _report_unsolicited(self, now_s: float) -> None:
+        for address, count, since in self._unsolicited.ended(now_s):
+            self._event(now_s, address, EventKind.REJECTED_MESSAGE,
+                        f"{count} more message{'s' if count != 1 else ''} rejected since "
+                        f"{since:.2f} s (counted, not logged one by one)")
+
+    def _end_session(self, session: ClientSession, time_s: float, kind: EventKind,
+                     detail: str) -> None:
+        if self.sessions.get(session.address) is session:
+            del self.sessions[session.address]
+        if session.checking is not None:
+            session.checking[0].cancel()
+            session.checking = None
+        self._event(time_s, session.address, kind, detail)
+
+    def end_session(self, address: int, time_s: float, detail: str) -> None:
+        """End the session at ``address`` for an error its client's data caused elsewhere (the
+        rig's use of its pool): event ``client error``."""
+        session = self.sessions.get(address)
+        if session is not None:
+            self._end_session(session, time_s, EventKind.CLIENT_ERROR, detail)
+
+    def _guarded(self, session: ClientSession, time_s: float, step: Callable[..., None],
+                 *args: object) -> None:
+        """Run one step of a client's session; with ``isolate_errors`` an exception ends the
+        session (named in the event) instead of the TC."""
+        if not self.isolate_errors:
+            step(*args)
+            return
+        try:
+            step(*args)
+        except Exception as exc:   # a client's input must not end the TC
+            self._end_session(session, time_s, EventKind.CLIENT_ERROR,
+                              f"{type(exc).__name__}: {exc}")
 
     def _nack(self, address: int) -> None:
         pgn = pd.PROCESS_DATA_PGN
@@ -336,22 +461,66 @@ class TaskControllerServer:
         return (name if name is not None else ("address", address)), name
 
     def _on_working_set_master(self, msg: Received) -> None:
-        if self._down(msg.time_s):
+        if self._down(msg.time_s) or msg.source in (GLOBAL_ADDRESS, NULL_ADDRESS):
             return
         try:
             pd.decode_working_set_master(msg.data)
         except FrameError as exc:
-            self._event(msg.time_s, msg.source, EventKind.REJECTED_MESSAGE, str(exc))
+            self._reject(msg.time_s, msg.source, str(exc), nack=False)
             return
         session = self.sessions.get(msg.source)
         if session is not None:
             session.last_seen_s = msg.time_s
             return
         key, name = self._key(msg.source)
+        if name is None:
+            # ISO 11783-5: a control function claims its address before anything else; a
+            # session belongs to a NAME, and this address has none
+            self._reject(msg.time_s, msg.source, "working-set master from an address that "
+                         "never claimed: no session", nack=False)
+            return
         self.sessions[msg.source] = ClientSession(msg.source, key, name, msg.time_s, msg.time_s)
-        self._event(msg.time_s, msg.source, EventKind.CONNECTED,
-                    f"NAME {name:016X}" if name is not None else "NAME unknown")
-        self._send(pd.RequestVersion(), msg.source)
+        self._event(msg.time_s, msg.source, EventKind.CONNECTED, f"NAME {name:016X}")
+
+    def _on_address_claim(self, msg: Received) -> None:
+        """A claim seen on the bus: a session whose address changed hands, or whose NAME moved
+        (or could not claim), ends; so do they all when the TC lost its own address."""
+        if len(msg.data) != 8:
+            return
+        claimant = int.from_bytes(msg.data, "little")
+        holder = self.port.name_of(msg.source) if msg.source != NULL_ADDRESS else None
+        for session in list(self.sessions.values()):
+            if session.address == msg.source and holder != session.name:
+                self._end_session(session, msg.time_s, EventKind.SESSION_ENDED,
+                                  f"NAME {claimant:016X} claimed 0x{msg.source:02X}, the "
+                                  f"address of NAME {session.name or 0:016X}: the session was "
+                                  f"that NAME's")
+            elif session.name == claimant and session.address != msg.source:
+                where = ("could not claim an address" if msg.source == NULL_ADDRESS
+                         else f"moved to 0x{msg.source:02X}")
+                self._end_session(session, msg.time_s, EventKind.SESSION_ENDED,
+                                  f"the client's NAME {claimant:016X} {where}")
+        self._watch_address(msg.time_s, claimant)
+
+    def _watch_address(self, now_s: float, claimant: int | None = None) -> None:
+        """Say when the TC's own address is lost or held again; a lost one ends every
+        session (clients find the TC again by its status, from wherever it is)."""
+        address = self.port.address
+        if address == self._held:
+            return
+        if self._held is not None:
+            who = f" to NAME {claimant:016X}" if claimant is not None else ""
+            for session in list(self.sessions.values()):
+                self._end_session(session, now_s, EventKind.SESSION_ENDED,
+                                  f"the TC lost its address 0x{self._held:02X}")
+            self._event(now_s, None, EventKind.ADDRESS_LOST,
+                        f"the TC lost 0x{self._held:02X}{who} (a lower NAME wins, ISO "
+                        f"11783-5); " + ("it claims another" if address is None
+                                         else f"it holds 0x{address:02X}"))
+            self._next_status_s = None      # its status goes out at once from the new one
+        if address is not None:
+            self._event(now_s, None, EventKind.ADDRESS_CLAIMED, f"the TC holds 0x{address:02X}")
+        self._held = address
 
     def _on_request(self, msg: Received) -> None:
         if self._down(msg.time_s) or len(msg.data) < 3 or self.language_command is None:
@@ -361,21 +530,20 @@ class TaskControllerServer:
                            PRIORITY_DEFAULT)
 
     def _on_process_data(self, msg: Received) -> None:
-        if self._down(msg.time_s):
+        if self._down(msg.time_s) or msg.source in (GLOBAL_ADDRESS, NULL_ADDRESS):
             return
         try:
             message = pd.decode(msg.data)
         except FrameError as exc:
-            self._event(msg.time_s, msg.source, EventKind.REJECTED_MESSAGE, str(exc))
+            self._reject(msg.time_s, msg.source, str(exc), nack=False)
             return
         session = self.sessions.get(msg.source)
         if session is None:
             if not isinstance(message, pd.ClientTask | pd.TaskControllerStatus):
-                self._event(msg.time_s, msg.source, EventKind.REJECTED_MESSAGE,
-                            f"{type(message).__name__} before a working-set master message")
-                self._nack(msg.source)
+                self._reject(msg.time_s, msg.source, f"{type(message).__name__} before a "
+                             f"working-set master message", nack=True)
             return
-        self._handle(session, message, msg)
+        self._guarded(session, msg.time_s, self._handle, session, message, msg)
 
     def _handle(self, session: ClientSession, message: pd.ProcessDataMessage,
                 msg: Received) -> None:
@@ -388,7 +556,9 @@ class TaskControllerServer:
                 self._send(pd.Version(self.options.version, self.options.options,
                                       self.options.booms, self.options.sections,
                                       self.options.channels), session.address)
-                if session.version is None:
+                if session.version is None and not session.version_asked:
+                    # ISO 11783-10: the client asks first; the TC asks back once answered
+                    session.version_asked = True
                     self._send(pd.RequestVersion(), session.address)
             case pd.Version():
                 session.version = message.version
@@ -450,12 +620,16 @@ class TaskControllerServer:
                                                      message.command),
                            session.address, PRIORITY_ACK)
             case pd.ProcessDataAcknowledge():
-                self.acknowledgements.append(ReceivedAcknowledge(
-                    t, session.address, message.element, message.ddi, int(message.errors),
-                    message.command))
+                ack = ReceivedAcknowledge(t, session.address, message.element, message.ddi,
+                                          int(message.errors), message.command)
+                self.counts["acknowledgements"] += 1
+                if self.keep_records:
+                    self.acknowledgements.append(ack)
+                if self.recorder is not None:
+                    self.recorder(ack)
             case _:
-                self._event(t, session.address, EventKind.REJECTED_MESSAGE,
-                            f"{type(message).__name__} is not a client's message")
+                self._reject(t, session.address,
+                             f"{type(message).__name__} is not a client's message", nack=False)
 
     def _on_value(self, session: ClientSession, message: ElementCommand, t: float) -> None:
         errors = AckError.NONE
@@ -469,7 +643,11 @@ class TaskControllerServer:
         if not errors:
             logged = LoggedValue(t, session.address, message.element, message.ddi,
                                  message.value)
-            self.values.append(logged)
+            self.counts["values"] += 1
+            if self.keep_records:
+                self.values.append(logged)
+            if self.recorder is not None:
+                self.recorder(logged)
             if self.on_value is not None:
                 self.on_value(logged)
         if errors or message.command == Command.SET_VALUE_AND_ACKNOWLEDGE:
@@ -477,13 +655,46 @@ class TaskControllerServer:
                                                  message.command), session.address, PRIORITY_ACK)
 
     def _activate(self, session: ClientSession, t: float) -> None:
+        if session.checking is not None:
+            return      # a check is under way: its answer is the response
         raw = bytes(session.transfer)
         version = session.version if session.version is not None else self.options.version
         version = min(version, self.options.version)
+        if raw and self.checker is not None:
+            session.checking = (self.checker.submit(parse_and_check, raw, version, self.usable),
+                                raw)
+            return
         try:
-            if raw:
-                pool = ObjectPool.from_bytes(raw, version=version)
-            else:
+            pool = parse_and_check(raw, version, self.usable) if raw else None
+        except DdopError as err:
+            self._refuse_pool(session, t, err)
+            return
+        self._complete_activation(session, t, pool, raw)
+
+    def _finish_activation(self, session: ClientSession, t: float) -> None:
+        """The check off the network's thread is done: answer the activation."""
+        assert session.checking is not None
+        future, raw = session.checking
+        session.checking = None
+        try:
+            pool = future.result()
+        except DdopError as err:
+            self._refuse_pool(session, t, err)
+            return
+        self._complete_activation(session, t, pool, raw)
+
+    def _refuse_pool(self, session: ClientSession, t: float, err: DdopError) -> None:
+        self._event(t, session.address, EventKind.REFUSED, str(err))
+        self._send(pd.ObjectPoolActivateResponse(
+            int(err.activation_error),
+            err.parent_id if err.parent_id is not None else 0xFFFF,
+            err.object_id if err.object_id is not None else 0xFFFF,
+            int(err.pool_error)), session.address)
+
+    def _complete_activation(self, session: ClientSession, t: float, pool: ObjectPool | None,
+                             raw: bytes) -> None:
+        try:
+            if pool is None:
                 stored = self.store.latest(session.key)
                 if stored is None:
                     raise DdopError(
@@ -504,12 +715,7 @@ class TaskControllerServer:
                     activation_error=ActivationError.DIFFERENT_DDOP_SAME_STRUCTURE_LABEL,
                     pool_error=PoolError.NONE)
         except DdopError as err:
-            self._event(t, session.address, EventKind.REFUSED, str(err))
-            self._send(pd.ObjectPoolActivateResponse(
-                int(err.activation_error),
-                err.parent_id if err.parent_id is not None else 0xFFFF,
-                err.object_id if err.object_id is not None else 0xFFFF,
-                int(err.pool_error)), session.address)
+            self._refuse_pool(session, t, err)
             return
         session.pool = pool
         session.settable = pool.settable()
@@ -521,4 +727,20 @@ class TaskControllerServer:
         self._event(t, session.address, EventKind.ACTIVATED,
                     f"{len(pool.objects)} objects, {len(raw)} bytes, version {pool.version}")
         self._send(pd.ObjectPoolActivateResponse(0), session.address)
+
+
+def parse_and_check(raw: bytes, version: int,
+                    usable: Callable[[ObjectPool], None] | None = None) -> ObjectPool:
+    """Parse ``raw``, validate it by ISO 11783-10's rules, and check that this TC can use it
+    (run on the network's thread, or in the server's ``checker``).
+
+    Raises
+    ------
+    DdopError
+        The first problem, with the activate response's codes.
+    """
+    pool = ObjectPool.from_bytes(raw, version=version)
+    if usable is not None:
+        usable(pool)
+    return pool
 

@@ -153,18 +153,34 @@ def test_nothing_is_sent_before_the_address_is_claimed() -> None:
     assert port.sent == []
 
 
-def test_working_set_master_opens_a_session_and_asks_the_version() -> None:
+def test_working_set_master_opens_a_session_and_the_version_exchange_is_the_standards() -> None:
+    # ISO 11783-10: the client asks the TC's version first (after the TC status and its
+    # working-set master); the TC answers and then asks the client's, once. A TC that asks at
+    # the working-set master makes AgIsoStack++'s client warn "Server requested version
+    # information at a strange time" (it is not yet waiting for the TC's request).
     port = FakePort()
     server = _server(port, options=ServerOptions(booms=2, sections=36, channels=3,
                                                  options=0x1F))
     client = Client(port)
-    assert client.working_set_master(0.0) == [pd.RequestVersion()]
+    assert client.working_set_master(0.0) == []
     assert CLIENT in server.sessions and server.sessions[CLIENT].name == NAME
-    assert client.send(pd.Version(4, 0x10, 1, 4, 1), 0.1) == []
+    assert client.send(pd.RequestVersion(), 0.1) == [pd.Version(4, 0x1F, 2, 36, 3),
+                                                     pd.RequestVersion()]
+    assert client.send(pd.Version(4, 0x10, 1, 4, 1), 0.2) == []
     assert server.sessions[CLIENT].version == 4
     # once the client's version is known, the TC does not ask it again
-    assert client.send(pd.RequestVersion(), 0.2) == [pd.Version(4, 0x1F, 2, 36, 3)]
+    assert client.send(pd.RequestVersion(), 0.3) == [pd.Version(4, 0x1F, 2, 36, 3)]
     assert [e.kind for e in server.events] == [EventKind.CONNECTED, EventKind.VERSION]
+
+
+def test_the_tc_asks_the_clients_version_once_even_unanswered() -> None:
+    port = FakePort()
+    _server(port)
+    client = Client(port)
+    client.working_set_master(0.0)
+    assert pd.RequestVersion() in client.send(pd.RequestVersion(), 0.1)
+    assert client.send(pd.RequestVersion(), 0.2) == [
+        pd.Version(4, pd.VersionOption.DOCUMENTATION, 1, 16, 1)]
 
 
 def test_version_request_before_the_clients_version_asks_back() -> None:
@@ -260,7 +276,7 @@ def test_a_full_session_activates_and_process_data_flows() -> None:
     logged = [(v.time_s, v.element, v.ddi, v.value) for v in server.values]
     assert logged == [(0.5, product.element_number, ddi.ACTUAL_MASS_PER_AREA_RATE, 24_500),
                       (0.6, 0, ddi.ACTUAL_WORK_STATE, 1)]
-    kinds = [e.kind for e in server.events]
+    kinds = [e.kind for e in server.events if e.kind != EventKind.ADDRESS_CLAIMED]
     assert kinds[-2:] == [EventKind.POOL_TRANSFERRED, EventKind.ACTIVATED]
 
 

@@ -21,7 +21,10 @@ IMPLEMENT_NAME = IsobusName(identity_number=7, manufacturer_code=200, function=1
 
 class ScriptedClient:
     """A TC client in the order AgIsoStack++'s client takes: status, working-set master,
-    version, labels, transfer, activate; then an actual rate every 0.5 s."""
+    its request for the TC's version, the TC's version, then waiting for the TC's request for
+    its own (a request at any other time is what AgIsoStack++ warns of, "Server requested
+    version information at a strange time": kept in :attr:`strange`), labels, transfer,
+    activate; then an actual rate every 0.5 s."""
 
     def __init__(self, port: InternalControlFunction, pool: ObjectPool) -> None:
         self.port = port
@@ -32,6 +35,7 @@ class ScriptedClient:
         self.setpoints: list[tuple[float, ElementCommand]] = []
         self.triggers: list[ElementCommand] = []
         self.status_seen: list[float] = []
+        self.strange: list[float] = []
         self._next_task_s = 0.0
         self._next_value_s = 0.0
         port.subscribe(pd.PROCESS_DATA_PGN, self._on_process_data)
@@ -51,13 +55,14 @@ class ScriptedClient:
             return
         match m:
             case pd.RequestVersion():
+                if self.state != "wait version request":
+                    self.strange.append(msg.time_s)
+                    return
                 self._send(pd.Version(4, pd.VersionOption.IMPLEMENT_SECTION_CONTROL, 1, 4, 1))
-                if self.state == "wait version request":
-                    self.state = "wait version"
-                    self._send(pd.RequestVersion())
-            case pd.Version():
                 self.state = "wait structure label"
                 self._send(pd.RequestStructureLabel())
+            case pd.Version() if self.state == "wait version":
+                self.state = "wait version request"
             case pd.StructureLabel():
                 if m.label == self.pool.device.structure_label:
                     self.state = "wait localization label"
@@ -94,10 +99,11 @@ class ScriptedClient:
         if self.tc is None or self.port.address is None:
             return
         if self.state == "wait status":
-            self.state = "wait version request"
+            self.state = "wait version"
             self.port.send(pd.WORKING_SET_MASTER_PGN,
                            pd.encode_working_set_master(pd.WorkingSetMaster(1)), GLOBAL_ADDRESS,
                            7)
+            self._send(pd.RequestVersion())
         if now_s >= self._next_task_s:
             self._send(pd.ClientTask(False))
             self._next_task_s = now_s + 2.0
@@ -129,6 +135,7 @@ def test_a_client_connects_over_the_network_with_its_pool_over_tp() -> None:
 
     assert client.state == "connected", (client.state, [str(e) for e in server.events])
     assert client.connected_s is not None and client.connected_s < 2.0
+    assert client.strange == [], "the TC asked the client's version out of turn"
     tp_frames = [f for f in wire.frames if (f.frame.arbitration_id >> 8) & 0x3FF00 == 0xEC00]
     assert tp_frames, "the DDOP must travel by TP connection management"
     session = server.sessions[0x81]
