@@ -17,9 +17,26 @@ live, flushed every :data:`SLICE_S`: ``tail -f`` them at the path printed when t
 - ``tc.jsonl``: one JSON object per line for every connection event, value the implement sent
   and process data acknowledgement the TC received, in run time;
 
-and at the end ``as-applied.geojson`` (the as-applied map of the implement, when one connected)
+and at the end ``as-applied.geojson`` (the as-applied map of the first implement that connected)
 and ``summary.json``. A disk that refuses a write ends the serve: what was recorded until then
 is moved into ``out`` all the same, and the error names the file.
+
+``summary.json`` is final however the serve ends: ``"status"`` is ``finished`` (the duration
+ran out), ``interrupted`` (Ctrl-C, SIGTERM or SIGHUP; ``"signal"`` names it) or ``error`` (a bus
+error, a disk that refused a write, a bug: ``"error"`` says what), and the staging directory is
+gone; only SIGKILL, which no process can answer, leaves the placeholder (``"running"``, naming
+the staging directory, which the next serve into ``out`` removes).
+
+What the TC records goes to ``tc.jsonl`` as it happens (at most a slice's worth in memory), not
+into memory for the whole serve: a serve of hours with a client sending thousands of values a
+second stays the size it started. Unsolicited traffic is answered and logged at a bounded rate
+(one line per address and second, then a count). The summary counts the TC's events by kind,
+the transfers by how they ended, and the frames dropped on arrival, and says where the TC is:
+``tc_address`` (``null`` when it holds none) and ``tc_address_changes``.
+
+No client's input ends the serve: a pool the tractor cannot use is refused at activation with
+the standard's codes, and a client whose messages raise loses its session (``client error``),
+the TECU and every other client going on.
 """
 
 from __future__ import annotations
@@ -27,8 +44,11 @@ from __future__ import annotations
 import contextlib
 import json
 import math
+import signal
+import threading
 import time
 from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -39,7 +59,7 @@ import can
 from hil.bus.registry import open_bus
 from hil.errors import BusError
 from hil.isobus import ddi as dd
-from hil.isobus.tc.records import Event, LoggedValue, ReceivedAcknowledge
+from hil.isobus.tc.records import Event, EventKind, LoggedValue, ReceivedAcknowledge, Record
 from hil.isobus.tractor import Tractor
 from hil.isobus.wire import drive
 from hil.record.atomic import named_os_error, write_json_atomic
@@ -130,31 +150,42 @@ def _ack_line(a: ReceivedAcknowledge) -> dict[str, Any]:
             "element": a.element, "ddi": a.ddi, "errors": a.errors, "command": a.command}
 
 
-class _TcLog:
-    """Appends what the TC saw since the last call to ``tc.jsonl`` (and events to a console)."""
+#: how many of the TC's address changes the summary lists (all are counted)
+ADDRESS_CHANGES_KEPT = 50
 
-    def __init__(self, tractor: Tractor, file: IO[str],
-                 console: Callable[[str], None] | None) -> None:
-        self.tractor = tractor
+
+class _TcLog:
+    """What the TC records, as ``tc.jsonl`` lines: taken as it happens (the TC's recorder),
+    written at each :meth:`flush` (so a write the disk refuses is the file's, not the bus's),
+    events also to the console. Holds at most one slice's lines."""
+
+    def __init__(self, file: IO[str], console: Callable[[str], None] | None) -> None:
         self.file = file
         self.console = console
-        self.seen = [0, 0, 0]
+        self._lines: list[str] = []
+        #: the TC's own address changes (lost, claimed), the first ADDRESS_CHANGES_KEPT
+        self.address_changes: list[dict[str, Any]] = []
+
+    def record(self, item: Record) -> None:
+        if isinstance(item, Event):
+            line = _event_line(item)
+            if item.kind in (EventKind.ADDRESS_LOST, EventKind.ADDRESS_CLAIMED) and len(
+                    self.address_changes) < ADDRESS_CHANGES_KEPT:
+                self.address_changes.append(line)
+            if self.console is not None:
+                who = f"0x{item.address:02X}" if item.address is not None else "TC"
+                self.console(f"{item.time_s:8.2f} s  {who}  {item.kind.value}"
+                             + (f": {item.detail}" if item.detail else ""))
+        elif isinstance(item, LoggedValue):
+            line = _value_line(item)
+        else:
+            line = _ack_line(item)
+        self._lines.append(json.dumps(line))
 
     def flush(self) -> None:
-        tc = self.tractor.tc
-        lines: list[tuple[float, dict[str, Any]]] = []
-        for i, (items, fmt) in enumerate(((tc.events, _event_line), (tc.values, _value_line),
-                                          (tc.acknowledgements, _ack_line))):
-            new = items[self.seen[i]:]
-            self.seen[i] = len(items)
-            lines.extend((item.time_s, fmt(item)) for item in new)  # type: ignore[operator]
-            if i == 0 and self.console is not None:
-                for e in new:
-                    who = f"0x{e.address:02X}" if e.address is not None else "TC"
-                    self.console(f"{e.time_s:8.2f} s  {who}  {e.kind.value}"
-                                 + (f": {e.detail}" if e.detail else ""))
-        for _, line in sorted(lines, key=lambda p: p[0]):
-            self.file.write(json.dumps(line) + "\n")
+        lines, self._lines = self._lines, []
+        if lines:
+            self.file.write("\n".join(lines) + "\n")
         self.file.flush()
 
 
@@ -168,10 +199,44 @@ def _opened(path: Path, mode: str = "w") -> Iterator[TextIO]:
         yield handle
 
 
+class Hangup(KeyboardInterrupt):
+    """SIGHUP (the terminal closed): ends a serve as Ctrl-C does, its record written."""
+
+
+@contextmanager
+def _hangup_ends_the_serve() -> Iterator[None]:
+    """SIGHUP raises :class:`Hangup` inside (main thread only; ``hil``'s own handlers turn
+    SIGINT and SIGTERM into ``KeyboardInterrupt`` already)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def hangup(signum: int, frame: object) -> None:
+        raise Hangup(f"signal {signum}")
+
+    previous = signal.signal(signal.SIGHUP, hangup)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGHUP, previous)
+
+
+def _signal_name(exc: KeyboardInterrupt) -> str:
+    if isinstance(exc, Hangup):
+        return "SIGHUP"
+    if type(exc).__name__ == "Terminated":       # hil.cli.main's SIGTERM
+        return "SIGTERM"
+    return "SIGINT"
+
+
 def serve(tractor: Tractor, bus_spec: str, out: Path, *, duration_s: float = math.inf,
           console: Callable[[str], None] | None = print,
           clock: Callable[[], float] = time.monotonic) -> ServeResult:
     """Run ``tractor`` on ``bus_spec`` in real time until ``duration_s`` or Ctrl-C.
+
+    The TC's records go to ``tc.jsonl`` and are not kept in memory (the tractor's TC is set
+    so); received pools are checked in a thread of their own, so the TECU's messages stay on
+    time meanwhile.
 
     Returns
     -------
@@ -183,7 +248,7 @@ def serve(tractor: Tractor, bus_spec: str, out: Path, *, duration_s: float = mat
     ------
     hil.errors.BusError
         The bus cannot be opened or fails, or ``out`` cannot be written (what was recorded
-        until then is on disk).
+        until then is on disk, and ``summary.json`` says why it ended).
     """
     bus = open_bus(bus_spec)
     try:
@@ -201,61 +266,105 @@ def serve(tractor: Tractor, bus_spec: str, out: Path, *, duration_s: float = mat
     if console is not None:
         console(f"live files (tail -f them): {staging.path}/tc.jsonl, bus.log; moved into "
                 f"{out}/ at the end")
+    tc = tractor.tc
+    tc.keep_records = False
+    checker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="tc-ddop-check")
+    tc.checker = checker
     refused = _Refused(staging.path)
+    ending: dict[str, Any] = {"status": "finished"}
     interrupted = False
     now = 0.0
     logged: LoggedDevice | None = None
+    tc_log: _TcLog | None = None
     try:
-        with refused.noting("bus.log"):
-            writer = can.Logger(str(staging.path / "bus.log"))
-        if refused.error is None:
-            logged = LoggedDevice(tractor.network, writer, epoch_s=time.time())
-            try:
-                with refused.noting("tc.jsonl"), _opened(staging.path / "tc.jsonl") as tc_file:
-                    tc_log = _TcLog(tractor, tc_file, console)
-                    try:
-                        while now < duration_s and refused.error is None:
-                            with refused.noting("bus.log"):
-                                now = drive(logged, bus, min(SLICE_S, duration_s - now),
-                                            clock=clock, start_s=now)
+        with _hangup_ends_the_serve():
+            with refused.noting("bus.log"):
+                writer = can.Logger(str(staging.path / "bus.log"))
+            if refused.error is None:
+                logged = LoggedDevice(tractor.network, writer, epoch_s=time.time())
+                try:
+                    with refused.noting("tc.jsonl"), \
+                            _opened(staging.path / "tc.jsonl") as tc_file:
+                        tc_log = _TcLog(tc_file, console)
+                        tc.recorder = tc_log.record
+                        try:
+                            while now < duration_s and refused.error is None:
+                                with refused.noting("bus.log"):
+                                    now = drive(logged, bus, min(SLICE_S, duration_s - now),
+                                                clock=clock, start_s=now)
+                                with refused.noting("tc.jsonl"):
+                                    tc_log.flush()
+                        except KeyboardInterrupt as exc:
+                            interrupted = True
+                            ending = {"status": "interrupted", "signal": _signal_name(exc)}
+                        except can.CanError as exc:
+                            raise BusError(f"{bus_spec}: {exc}") from exc
+                        finally:
+                            tc.recorder = None
                             with refused.noting("tc.jsonl"):
                                 tc_log.flush()
-                    except KeyboardInterrupt:
-                        interrupted = True
-                    except can.CanError as exc:
-                        raise BusError(f"{bus_spec}: {exc}") from exc
-                    finally:
-                        with refused.noting("tc.jsonl"):
-                            tc_log.flush()
-            finally:
-                with refused.noting("bus.log"):
-                    writer.stop()
-    except BaseException:
-        # a bus error, or a second Ctrl-C: what was recorded moves into out all the same
+                finally:
+                    with refused.noting("bus.log"):
+                        writer.stop()
+    except BaseException as exc:
+        # a bus error, a bug, a second signal: what was recorded moves into out all the same,
+        # with a summary that says how the serve ended
         bus.shutdown()
+        checker.shutdown(wait=True, cancel_futures=True)
+        if isinstance(exc, KeyboardInterrupt):
+            ending = {"status": "interrupted", "signal": _signal_name(exc)}
+        else:
+            ending = {"status": "error", "error": f"{type(exc).__name__}: {exc}"
+                      if not isinstance(exc, BusError | OSError) else str(exc)}
+        with contextlib.suppress(Exception):
+            _write_summary(staging, tractor, logged, now, interrupted, ending, tc_log)
         _promote(staging)
         raise
     bus.shutdown()
+    checker.shutdown(wait=True, cancel_futures=True)
     result = ServeResult(run_time_s=now, frames=logged.frames if logged else 0,
-                         events=len(tractor.tc.events), values=len(tractor.tc.values),
-                         activated=any(e.kind.value == "activated" for e in tractor.tc.events),
+                         events=tc.counts["events"], values=tc.counts["values"],
+                         activated=tc.event_counts[EventKind.ACTIVATED] > 0,
                          interrupted=interrupted)
     if refused.error is None:
         with refused.noting("as-applied.geojson"):
             record = tractor.as_applied()
             if record is not None and len(record):
                 record.save_geojson(staging.path / "as-applied.geojson")
-    summary: dict[str, Any] = dict(result.__dict__)
     if refused.error is not None:
-        summary["error"] = str(refused.in_out(out))
+        ending = {"status": "error", "error": str(refused.in_out(out))}
     # a small file: it may still fit where the log did not; if not, out's placeholder stays
     with refused.noting("summary.json"):
-        write_json_atomic(staging.path / "summary.json", summary)
+        _write_summary(staging, tractor, logged, now, interrupted, ending, tc_log)
     # however the serve ended, what it recorded moves into out (renames: no space needed)
     _promote(staging)
     if refused.error is not None:
         raise refused.in_out(out)
     return result
+
+
+def _write_summary(staging: Staging, tractor: Tractor, logged: LoggedDevice | None,
+                   now: float, interrupted: bool, ending: dict[str, Any],
+                   tc_log: _TcLog | None) -> None:
+    """``summary.json``: how the serve ended, its counts, where the TC is."""
+    tc = tractor.tc
+    address = tractor.tc_function.address
+    summary: dict[str, Any] = {
+        **ending,
+        "run_time_s": now, "frames": logged.frames if logged else 0,
+        "events": tc.counts["events"], "values": tc.counts["values"],
+        "acknowledgements": tc.counts["acknowledgements"],
+        "activated": tc.event_counts[EventKind.ACTIVATED] > 0,
+        "interrupted": interrupted,
+        "event_counts": {k.value: n for k, n in sorted(tc.event_counts.items(),
+                                                        key=lambda kv: kv[0].value)},
+        "transfers": dict(sorted(tractor.network.transport.counts.items())),
+        "dropped_frames": dict(sorted(tractor.network.dropped.items())),
+        "tc_address": address,
+        "tc_address_changes": tc_log.address_changes if tc_log is not None else [],
+        "tecu_address": tractor.tecu.port.address,
+    }
+    write_json_atomic(staging.path / "summary.json", summary)
 
 
 def _trim_to_last_line(path: Path) -> None:

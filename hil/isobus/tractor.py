@@ -20,18 +20,32 @@ lockstep clock in a rig and in real time under ``hil isobus serve``):
 
 Which sections a boom has and where they are come from the implement's DDOP (elements of type
 section with their X/Y offsets, DDI 134/135, and widths, DDI 67 or 70); a DDOP without sections
-is treated as one section as wide as its widest working width. Nothing reads a clock: the run
-time arrives through the network's ``tick``.
+is treated as one section as wide as its widest working width. A DDOP the tractor cannot make a
+boom of (a section without a working width, no width at all, more than 256 sections) is refused
+at activation with the standard's error codes (errors in the DDOP, the object named), so no
+client's pool can fail the tractor later. A client's message or set-point that raises ends that
+client's session (``client error`` in the TC's events), not the tractor: the TECU's speeds and
+every other client go on.
+
+An implement is its NAME: when another NAME takes its address, the TC ends its session and the
+newcomer's values are not recorded as the implement's; :meth:`Tractor.as_applied` keeps the
+record of the first implement that connected.
+
+The TC's NAME is self-configurable (ISO 11783-5): when a lower NAME claims 0xF7 the TC moves to
+a free address in 128-247, says so in its events (``address lost``, ``address claimed``), and its
+clients find it there by its status, as they would a real TC that moved. Nothing reads a clock:
+the run time arrives through the network's ``tick``.
 """
 
 from __future__ import annotations
 
 import math
+from concurrent.futures import Executor
 from dataclasses import dataclass, field
 
 from hil.isobus import ddi as dd
 from hil.isobus import process_data as pd
-from hil.isobus.ddop import ObjectPool
+from hil.isobus.ddop import DdopError, ObjectPool, PoolError
 from hil.isobus.ddop.objects import DeviceElement, ElementType
 from hil.isobus.faults import IsobusFaults
 from hil.isobus.field.as_applied import AsAppliedRecord
@@ -45,6 +59,7 @@ from hil.isobus.tc.records import LoggedValue
 from hil.isobus.tc.server import ServerOptions, TaskControllerServer
 from hil.isobus.tc.setpoints import SetpointRequest
 from hil.isobus.tecu import SpeedSource, TractorEcu, TractorState, add_tecu
+from hil.isobus.transport import TransportTiming
 
 __all__ = ["TC_ADDRESS", "TC_NAME", "Tractor", "TractorSetup", "boom_from_ddop",
            "default_server_options"]
@@ -54,8 +69,11 @@ TC_FUNCTION = 130
 TC_ADDRESS = 0xF7
 """The Task Controller's preferred address (isobus.md)."""
 TC_NAME = IsobusName(identity_number=0x1EE, manufacturer_code=0, function=TC_FUNCTION,
-                     device_class=0, industry_group=2)
-"""The rig's TC NAME (identity number arbitrary, manufacturer code 0: no manufacturer)."""
+                     device_class=0, industry_group=2, self_configurable=True)
+"""The rig's TC NAME (identity number arbitrary, manufacturer code 0: no manufacturer),
+self-configurable: a TC that loses 0xF7 claims another address in 128-247 (ISO 11783-5)."""
+MAX_SECTIONS = 256
+"""Sections the condensed work states carry (16 DDIs of 16, ISO 11783-10)."""
 
 #: DDIs the as-applied record reads from what the implement reports
 _ACTUAL_RATE_FOR_SETPOINT = {dd.SETPOINT_MASS_PER_AREA_RATE: dd.ACTUAL_MASS_PER_AREA_RATE,
@@ -116,6 +134,7 @@ class _Implement:
     sections: list[DeviceElement]
     control: SectionControl
     record: AsAppliedRecord | None
+    name: int | None = None
     states_at_s: float = -math.inf
     actual_rate: dict[int, float] = field(default_factory=dict)
     actual_states: dict[int, int] = field(default_factory=dict)
@@ -130,10 +149,17 @@ def boom_from_ddop(pool: ObjectPool) -> tuple[Boom, list[DeviceElement]]:
 
     Raises
     ------
-    ValueError
-        The pool has no section and no working width, or a section without a width.
+    DdopError
+        (a ValueError) The pool has no section and no working width, a section without a
+        width, or more than 256 sections; naming the element's object, with the activate
+        response's codes (errors in the DDOP, any other error).
     """
     sections = [e for e in pool.elements if e.element_type == ElementType.SECTION]
+    if len(sections) > MAX_SECTIONS:
+        extra = sections[MAX_SECTIONS]
+        raise DdopError(f"{len(sections)} section elements; the condensed work states carry "
+                        f"{MAX_SECTIONS}", object_id=extra.object_id, parent_id=extra.parent_id,
+                        pool_error=PoolError.ANY_OTHER_ERROR)
     turn_on = turn_off = 0.0
     for element in pool.elements:
         on = pool.property_value(element.element_number, dd.SC_SETPOINT_TURN_ON_TIME)
@@ -149,16 +175,18 @@ def boom_from_ddop(pool: ObjectPool) -> tuple[Boom, list[DeviceElement]]:
         return None
 
     if not sections:
-        widths = [w for w in (width_mm(e) for e in pool.elements) if w]
+        widths = [w for w in (width_mm(e) for e in pool.elements) if w and w > 0]
         if not widths:
-            raise ValueError("the DDOP declares no section and no working width (DDI 67/70)")
+            raise DdopError("the DDOP declares no section and no working width (DDI 67/70)",
+                            object_id=pool.device.object_id)
         return Boom((Section(max(widths) / 1000.0, 0.0, 0.0),), turn_on, turn_off), []
     out = []
     for element in sections:
         width = width_mm(element)
-        if not width:
-            raise ValueError(f"section element {element.element_number} (object "
-                             f"{element.object_id}) has no working width (DDI 67 or 70)")
+        if not width or width < 0:
+            raise DdopError(f"section element {element.element_number} has no working width "
+                            f"(a DDI 67 or 70 property > 0 mm)", object_id=element.object_id,
+                            parent_id=element.parent_id)
         x = pool.property_value(element.element_number, dd.DEVICE_ELEMENT_OFFSET_X) or 0
         y = pool.property_value(element.element_number, dd.DEVICE_ELEMENT_OFFSET_Y) or 0
         out.append((y, Section(width / 1000.0, y / 1000.0, x / 1000.0), element))
@@ -177,21 +205,33 @@ class Tractor:
         Faults the network injects into the implement's stack.
     options : ServerOptions, optional
         What the TC reports in its version message.
+    checker : Executor, optional
+        Where the TC parses and checks received pools (a thread, for a real-time serve: the
+        TECU's messages stay on time meanwhile); ``None``: on the network's thread.
     """
 
     def __init__(self, setup: TractorSetup, *, faults: IsobusFaults | None = None,
-                 options: ServerOptions | None = None) -> None:
+                 options: ServerOptions | None = None,
+                 checker: Executor | None = None) -> None:
         self.setup = setup
-        self.network = IsobusNetwork(faults=faults, name="tractor")
+        options = options or default_server_options()
+        # a transfer larger than the TC's memory (plus the command byte) is refused at its RTS
+        self.network = IsobusNetwork(
+            faults=faults, name="tractor",
+            timing=TransportTiming(max_receive_bytes=max(options.memory_bytes + 1, 1 << 16)))
         self.tecu: TractorEcu = add_tecu(self.network, self.truth)
         tc_cf = self.network.add(TC_NAME, TC_ADDRESS, "TC")
         #: the TC's control function (its address claim)
         self.tc_function = tc_cf
-        self.tc = TaskControllerServer(tc_cf, options=options or default_server_options(),
-                                       setpoints=self._setpoint, on_value=self._on_value)
+        self.tc = TaskControllerServer(tc_cf, options=options, setpoints=self._setpoint,
+                                       on_value=self._on_value, usable=check_usable,
+                                       isolate_errors=True, checker=checker)
         tc_cf.run(self.tc)
         tc_cf.run(self)
+        #: the implements with an active DDOP, by address
         self._implements: dict[int, _Implement] = {}
+        #: the first implement that connected (its record is the run's as-applied map)
+        self._first: _Implement | None = None
         self._next_record_s = 0.0
         self._poses: dict[float, Pose] = {}
 
@@ -244,14 +284,21 @@ class Tractor:
             self._implements.pop(address, None)
             return None
         known = self._implements.get(address)
-        if known is not None and known.pool is session.pool:
+        if known is not None and known.pool is session.pool and known.name == session.name:
             return known
-        boom, sections = boom_from_ddop(session.pool)
-        control = SectionControl(boom, self.setup.field.work_area,
-                                 overlap_tolerance_pct=self.setup.overlap_tolerance_pct)
-        unit = self.setup.prescription.unit.name if self.setup.prescription else "rate"
-        record = AsAppliedRecord(boom, self.setup.field.frame, unit)
-        known = _Implement(session.pool, boom, sections, control, record)
+        if (self._first is not None and self._first.pool is session.pool
+                and self._first.name == session.name):
+            known = self._first          # the first implement back (a TC restart, a move)
+        else:
+            boom, sections = boom_from_ddop(session.pool)
+            control = SectionControl(boom, self.setup.field.work_area,
+                                     overlap_tolerance_pct=self.setup.overlap_tolerance_pct)
+            unit = self.setup.prescription.unit.name if self.setup.prescription else "rate"
+            record = AsAppliedRecord(boom, self.setup.field.frame, unit)
+            known = _Implement(session.pool, boom, sections, control, record,
+                               name=session.name)
+            if self._first is None:
+                self._first = known
         self._implements[address] = known
         return known
 
@@ -308,13 +355,24 @@ class Tractor:
             return
         self._next_record_s = now_s + self.setup.record_period_s
         pose = self.pose(now_s)
-        for implement in self._implements.values():
-            applying = self._applying(implement)
-            implement.control.record(pose, applying)
-            if implement.record is not None:
-                rate = self._actual_rate(implement)
-                implement.record.add(_Timed(now_s, pose), applying,
-                                     [rate] * len(implement.boom.sections))
+        for address in list(self._implements):
+            try:
+                self._sample(address, now_s, pose)
+            except Exception as exc:   # one implement's data must not end the tractor
+                self._implements.pop(address, None)
+                self.tc.end_session(address, now_s, f"as-applied record: "
+                                    f"{type(exc).__name__}: {exc}")
+
+    def _sample(self, address: int, now_s: float, pose: Pose) -> None:
+        implement = self._implement(address)    # None once its session ended
+        if implement is None:
+            return
+        applying = self._applying(implement)
+        implement.control.record(pose, applying)
+        if implement.record is not None:
+            rate = self._actual_rate(implement)
+            implement.record.add(_Timed(now_s, pose), applying,
+                                 [rate] * len(implement.boom.sections))
 
     def implement_address(self) -> int | None:
         """The address of the implement whose DDOP is active (the first, if several)."""
@@ -353,11 +411,10 @@ class Tractor:
     # -- results -------------------------------------------------------------------------------
 
     def as_applied(self, address: int | None = None) -> AsAppliedRecord | None:
-        """The as-applied record of the implement at ``address`` (the only one if ``None``)."""
+        """The as-applied record of the implement at ``address`` (``None``: of the first
+        implement that connected, whether still connected or not)."""
         if address is None:
-            if len(self._implements) != 1:
-                return None
-            return next(iter(self._implements.values())).record
+            return self._first.record if self._first is not None else None
         implement = self._implements.get(address)
         return implement.record if implement else None
 
@@ -371,6 +428,17 @@ class _Timed:
 
     def __getattr__(self, name: str) -> object:
         return getattr(self.pose, name)
+
+
+def check_usable(pool: ObjectPool) -> None:
+    """The TC's activation check that the tractor can work with ``pool`` (a boom of it).
+
+    Raises
+    ------
+    DdopError
+        What :func:`boom_from_ddop` finds, with the activate response's codes.
+    """
+    boom_from_ddop(pool)
 
 
 def default_server_options() -> ServerOptions:
