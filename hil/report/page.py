@@ -19,6 +19,7 @@ from hil.report.sections_tables import (
     runs_section,
     tests_section,
 )
+from hil.report.sections_vt import vt_section
 from hil.report.style import CSS
 
 REPORT_NAME = "report.html"
@@ -29,6 +30,7 @@ _NAV = (("verdict", "Verdict"), ("measurements", "Measurements"),
         ("conformance", "Bus conformance"), ("identity", "Device and bench"),
         ("plots-step", "Step responses"),
         ("plots-field", "Field runs"), ("field-maps", "Field maps"),
+        ("vt-screens", "Operator's screens"),
         ("per-condition", "Per condition"),
         ("plots-other", "Other runs"), ("timing", "Timing"), ("runs", "Runs"),
         ("tests", "Tests"), ("errors", "Errors"))
@@ -50,6 +52,7 @@ def render(qual: QualRecord, runs: list[RunData]) -> str:
         "plots-step": plots.get("step", ""),
         "plots-field": plots.get("field", ""),
         "field-maps": field_section(qual, runs),
+        "vt-screens": vt_section(qual, runs),
         "per-condition": condition_section(qual),
         "plots-other": plots.get("other", ""),
         "timing": timing_section(qual),

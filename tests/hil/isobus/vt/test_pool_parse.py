@@ -259,3 +259,14 @@ def test_agisostack_version3_example_pool() -> None:
     assert counts["working_set"] == 1 and counts["soft_key_mask"] >= 1
     assert counts["alarm_mask"] >= 1 and counts["picture_graphic"] >= 1
     assert b"".join(serialise_object(o) for o in pool) == data
+
+
+@pytest.mark.skipif(not EXAMPLE_POOL, reason="set AGRIHIL_VT_EXAMPLE_POOL (see above)")
+def test_agisostack_version3_example_pool_is_drawn() -> None:
+    from hil.isobus.vt.render import render
+    from hil.isobus.vt.workingset import WorkingSet
+
+    pool = ObjectPool.from_transfers([Path(str(EXAMPLE_POOL)).read_bytes()], 3)
+    image = render(WorkingSet(1, 1, None, 0.0, 0.0, pool=pool))
+    colours = image.getcolors(1 << 20)
+    assert colours is not None and len(colours) > 20      # text, pictures, soft keys

@@ -1,0 +1,164 @@
+"""The screens the operator saw, drawn as they changed, and the VT's part of a run's record.
+
+:class:`ScreenRecorder` listens to the VT (its ``on_change`` hooks) and draws the active
+working set's screen (:func:`hil.isobus.vt.render.render`) whenever the active mask, the soft
+key mask or a shown value changes: a new mask at once; value changes at most every
+``min_interval_s`` of run time (the last change of a burst is always drawn, at the end of
+the interval). A screen identical to the one before is not drawn again. Each screen is a PNG
+(``screen-0001.png`` ...) in ``directory`` when one is given; the latest is kept in memory
+for the browser VT either way.
+
+:func:`vt_record` is the VT's part of a run's record: per working set its pool (size in bytes,
+objects, the version label it was stored or loaded under, SHA-256 of its bytes, when it became
+active and whether from storage), and the screens with their run times. The report draws the
+screens on the run's time line from it (:mod:`hil.report.sections_vt`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+from hil.isobus.vt.render import render, visible_signature
+from hil.isobus.vt.server import VirtualTerminalServer
+from hil.isobus.vt.workingset import WorkingSet
+
+SCREENS_DIR = "vt"
+"""The run directory's folder for the screens and ``vt.json``."""
+
+
+@dataclass(frozen=True)
+class Screen:
+    """One drawn screen."""
+
+    time_s: float
+    address: int
+    mask: int
+    soft_key_mask: int
+    reason: str
+    file: str
+    sha256: str
+
+
+class ScreenRecorder:
+    """Draws the VT's screens as they change (see the module docstring).
+
+    Parameters
+    ----------
+    vt : VirtualTerminalServer
+        The VT to listen to.
+    directory : Path, optional
+        Where the PNGs go (created on the first screen); ``None``: kept in memory only.
+    min_interval_s : float
+        Least run time between two screens of value changes on the same mask.
+    max_screens : int
+        Screens kept at most (a run that changes its screen for hours keeps its first ones and
+        counts the rest in :attr:`dropped`).
+    """
+
+    def __init__(self, vt: VirtualTerminalServer, directory: Path | None = None,
+                 min_interval_s: float = 0.5, max_screens: int = 1000) -> None:
+        self.vt = vt
+        self.directory = directory
+        self.min_interval_s = min_interval_s
+        self.max_screens = max_screens
+        self.screens: list[Screen] = []
+        self.dropped = 0
+        #: the latest screen's PNG bytes per working set address
+        self.latest_png: dict[int, bytes] = {}
+        self._last: dict[int, tuple[float, tuple[object, ...], int]] = {}
+        self._pending: set[int] = set()
+        vt.on_change.append(self._on_change)
+
+    def _on_change(self, ws: WorkingSet, time_s: float, reason: str) -> None:
+        if ws.pool is None or ws.locked_mask is not None:
+            return
+        last = self._last.get(ws.address)
+        if last is not None and last[2] == ws.active_mask and \
+                time_s - last[0] < self.min_interval_s - 1e-9:
+            if ws.address not in self._pending:
+                self._pending.add(ws.address)
+                self.vt.at(last[0] + self.min_interval_s,
+                           lambda now, a=ws.address: self._deferred(a, now))
+            return
+        self.draw(ws, time_s, reason)
+
+    def _deferred(self, address: int, now: float) -> None:
+        self._pending.discard(address)
+        ws = self.vt.sessions.get(address)
+        if ws is not None and ws.pool is not None and ws.locked_mask is None:
+            self.draw(ws, now, "values changed")
+
+    def draw(self, ws: WorkingSet, time_s: float, reason: str) -> Screen | None:
+        """Draw the working set's screen now (unless it is the one drawn last)."""
+        signature = visible_signature(ws)
+        last = self._last.get(ws.address)
+        if last is not None and last[1] == signature:
+            return None
+        self._last[ws.address] = (time_s, signature, ws.active_mask)
+        o = self.vt.options
+        image = render(ws, o.data_mask_px, o.soft_key_width_px, o.soft_key_height_px,
+                       o.physical_soft_keys)
+        buffer = io.BytesIO()
+        image.save(buffer, format="PNG")
+        png = buffer.getvalue()
+        self.latest_png[ws.address] = png
+        if len(self.screens) >= self.max_screens:
+            self.dropped += 1
+            return None
+        name = f"screen-{len(self.screens) + 1:04d}.png"
+        if self.directory is not None:
+            self.directory.mkdir(parents=True, exist_ok=True)
+            (self.directory / name).write_bytes(png)
+        screen = Screen(round(time_s, 6), ws.address, ws.active_mask, ws.soft_key_mask,
+                        reason, name, hashlib.sha256(png).hexdigest())
+        self.screens.append(screen)
+        return screen
+
+
+def vt_record(vt: VirtualTerminalServer, recorder: ScreenRecorder | None = None,
+              ) -> dict[str, Any]:
+    """The VT's part of a run's record (JSON-ready)."""
+    sets = []
+    for ws in vt.sessions.values():
+        entry: dict[str, Any] = {"address": ws.address,
+                                 "name": f"{ws.name:016X}" if ws.name is not None else None,
+                                 "connected_s": ws.connected_s, "active": ws.active}
+        if ws.pool is not None:
+            label = ws.loaded_label or (ws.stored_labels[-1] if ws.stored_labels else None)
+            entry.update({
+                "pool_bytes": ws.pool.size, "objects": len(ws.pool),
+                "vt_version": ws.pool.version, "transfers": len(ws.pool.raw),
+                "version_label": label.decode("latin-1").rstrip() if label else None,
+                "sha256": ws.pool.sha256, "activated_s": ws.activated_s,
+                "loaded_from_storage": ws.loaded_label is not None,
+                "active_mask": ws.active_mask, "object_types": ws.pool.counts()})
+        sets.append(entry)
+    out: dict[str, Any] = {
+        "vt_version": vt.options.version, "data_mask_px": vt.options.data_mask_px,
+        "working_sets": sets,
+        "events": [asdict(e) for e in vt.events],
+        "commands": len(vt.commands),
+        "command_errors": sum(1 for c in vt.commands if c.error),
+    }
+    if recorder is not None:
+        out["screens"] = [asdict(s) for s in recorder.screens]
+        out["screens_dir"] = SCREENS_DIR
+        out["screens_dropped"] = recorder.dropped
+    return out
+
+
+def write_vt_record(run_dir: Path, vt: VirtualTerminalServer,
+                    recorder: ScreenRecorder | None = None) -> Path:
+    """Write ``vt/vt.json`` in the run directory (the screens are there already when the
+    recorder drew into ``run_dir / "vt"``)."""
+    path = run_dir / SCREENS_DIR / "vt.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(vt_record(vt, recorder), indent=1), encoding="utf-8")
+    tmp.replace(path)
+    return path
