@@ -36,6 +36,26 @@ def power_ups(is_bootup: np.ndarray) -> np.ndarray:
     return np.cumsum(is_bootup)
 
 
+def series(segment: np.ndarray, time_s: np.ndarray, unheard_s: np.ndarray) -> np.ndarray:
+    """Per frame (in log order), the unbroken series it belongs to: a power-up (``segment``)
+    cut wherever the DUT sent frames that a fault kept from the rig (``unheard_s``, sorted:
+    a cut wire). The interval across such frames is the fault's gap, not a cycle of the DUT's.
+
+    >>> series(np.array([1, 1, 1, 1]), np.array([0.0, 0.1, 0.5, 0.6]), np.array([0.2, 0.3]))
+    array([3, 3, 5, 5])
+    """
+    cuts = np.searchsorted(unheard_s, time_s, side="left")
+    return segment * (unheard_s.size + 1) + cuts
+
+
+def intervals_cut(segment: np.ndarray, series_of: np.ndarray) -> int:
+    """How many intervals within a power-up a cut (:func:`series`) leaves unjudged."""
+    if segment.size < 2:
+        return 0
+    same = segment[1:] == segment[:-1]
+    return int(np.count_nonzero(same & (series_of[1:] != series_of[:-1])))
+
+
 def intervals(time_s: np.ndarray, segment: np.ndarray) -> np.ndarray:
     """Intervals between successive frames of one message, within a power-up only (the gap
     across a restart is no cycle of the DUT's)."""
@@ -122,3 +142,26 @@ def sync_latency(sync_s: np.ndarray, command_s: np.ndarray) -> np.ndarray:
     after = np.searchsorted(command_s, sync_s, side="left")
     ok = after < command_s.size
     return command_s[after[ok]] - sync_s[ok]
+
+
+def heard_sync_latency(sync_s: np.ndarray, command_s: np.ndarray,
+                       unheard_s: np.ndarray) -> np.ndarray:
+    """:func:`sync_latency`, leaving out the SYNCs whose first command after them was one a
+    fault kept from the rig (``unheard_s``: a cut wire): the DUT answered those, nobody heard it.
+
+    >>> heard_sync_latency(np.array([0.0, 0.1, 0.2]), np.array([0.003, 0.204]),
+    ...                    np.array([0.103])).round(3)
+    array([0.003, 0.004])
+    """
+    if unheard_s.size == 0:
+        return sync_latency(sync_s, command_s)
+    times = np.concatenate([command_s, unheard_s])
+    heard = np.concatenate([np.ones(command_s.size, bool), np.zeros(unheard_s.size, bool)])
+    order = np.argsort(times, kind="stable")
+    times, heard = times[order], heard[order]
+    if sync_s.size == 0 or times.size == 0:
+        return np.zeros(0)
+    after = np.searchsorted(times, sync_s, side="left")
+    ok = after < times.size
+    ok[ok] = heard[after[ok]]
+    return times[after[ok]] - sync_s[ok]

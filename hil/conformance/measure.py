@@ -1,7 +1,9 @@
 """Bus conformance of one run as measurements, with limits from the profile or the defaults.
 
 :func:`run_conformance` reads the run's ``bus.log`` (the frames the rig received are the
-DUT's; a bus-load generator's frames are left out), checks them against the DUT's
+DUT's; a bus-load generator's frames are left out) and ``bus-unheard.log`` (the DUT's frames a
+fault kept from the rig, a cut wire: never received, so in no bus log), checks them against the
+DUT's
 :class:`~hil.conformance.declared.BusContract` and returns the measurements and a detail
 table (written as ``conformance.json`` beside the run's record, for the report).
 
@@ -25,6 +27,12 @@ Default limits (a profile's ``[limits]`` table overrides any of them by name):
                                         (none on a bus loaded with other traffic)
 ``bus.sync_latency.max``                none (recorded)
 ======================================  ===============================================
+
+Frames a fault kept from the rig (a cut wire) are judged as what they are: not received. They
+count for nothing (not in the bus share, no cycle, no heartbeat, no answer to a SYNC), and the
+gap they leave is the fault's, not the DUT's: an interval across them (cycle, heartbeat) is not
+judged, the heartbeat's last gap ends at the first of them, and a SYNC they answered first has
+no latency. The detail table says how many there were and how many intervals were left out.
 
 The cycle-time band of each interval is the median's limits widened by the resolution of the
 rig's time stamps: in real time the rig reads the bus once per physics step (1 ms); in
@@ -55,6 +63,7 @@ from hil.dut.profile import DutProfile, database_path
 from hil.errors import ConfigError
 from hil.limits import MEASUREMENTS
 from hil.measurements import Measurement
+from hil.record.buslog import UNHEARD_NAME
 
 SYNC_ID = 0x080
 CYCLE_TOLERANCE_PCT = 10.0
@@ -163,6 +172,8 @@ def run_conformance(record: Mapping[str, Any], out_dir: Path, profile: DutProfil
     path = Path(out_dir) / "bus.log"
     if not path.exists():
         return Conformance(detail={"skipped": "the run wrote no bus.log"})
+    unheard_path = Path(out_dir) / UNHEARD_NAME
+    unheard = read_bus_log(unheard_path) if unheard_path.exists() else None
     contract = contract or contract_of(profile)
     clock = str(record.get("clock", "lockstep"))
     isobus_log: FrameLog | None = None
@@ -181,7 +192,7 @@ def run_conformance(record: Mapping[str, Any], out_dir: Path, profile: DutProfil
                 duration_s=float(record.get("sim_s") or 0.0),
                 physics_period_s=physics_period_s, foreign=_foreign_keys(record),
                 bus_load=float((record.get("bus_load") or {}).get("fraction") or 0.0),
-                conditions=conditions)
+                conditions=conditions, unheard=unheard)
     if isobus_log is not None:
         resolution_s = (physics_period_s if clock == "realtime"
                         else profile.timing.control_period_ms / 1000.0)
@@ -207,10 +218,14 @@ def _with_profile_limits(profile: DutProfile, m: Measurement) -> Measurement:
 def judge(log: FrameLog, contract: BusContract, profile: DutProfile, *, clock: str,
           restarts: int, duration_s: float, physics_period_s: float,
           foreign: np.ndarray | None = None, bus_load: float = 0.0,
-          conditions: Mapping[str, Any] | None = None) -> Conformance:
+          conditions: Mapping[str, Any] | None = None,
+          unheard: FrameLog | None = None) -> Conformance:
     """The checks on a frame log (the rig's received frames are the DUT's; ``foreign``: keys
-    of other nodes' frames, left out; ``bus_load``: the fraction of the bit rate they took)."""
+    of other nodes' frames, left out; ``bus_load``: the fraction of the bit rate they took;
+    ``unheard``: the DUT's frames a fault kept from the rig, see the module)."""
     out = Conformance()
+    unheard = unheard if unheard is not None else FrameLog.empty()
+    unheard_s = np.sort(unheard.time_s)
     node = {"node": contract.node_name, **(conditions or {})}
     keys_all = checks.frame_keys(log)
     sync_mask = ~log.rx & (log.can_id == SYNC_ID) & ~log.extended
@@ -223,6 +238,8 @@ def judge(log: FrameLog, contract: BusContract, profile: DutProfile, *, clock: s
     is_hb = keys == hb_key
     is_bootup = is_hb & (dut.dlc == 1) & (dut.data[:, 0] == 0)
     segment = checks.power_ups(is_bootup)
+    # unbroken series: a power-up, cut where the DUT's frames did not reach the rig
+    series = checks.series(segment, dut.time_s, unheard_s)
     counts = checks.count_by_key(keys)
     declared = {checks.key_of(k): f for k, f in contract.frames.items()}
 
@@ -252,18 +269,21 @@ def judge(log: FrameLog, contract: BusContract, profile: DutProfile, *, clock: s
                     high=0)
             row["dlc_outcome"] = m.outcome.value
         if frame.cycle_ms is not None and key != hb_key:
-            row.update(_cycle(add, frame, dut.time_s[mask], segment[mask],
-                              resolution_ms(frame), node, realtime=clock == "realtime"))
+            row.update(_cycle(add, frame, dut.time_s[mask], series[mask],
+                              resolution_ms(frame), node, realtime=clock == "realtime",
+                              cut=checks.intervals_cut(segment[mask], series[mask])))
         rows.append(row)
     out.detail["messages"] = rows
     out.detail["undeclared"] = [{"id": _label(k), "frames": n} for k, n in
                                 sorted(unknown.items())]
-    out.detail["heartbeat"] = _heartbeat(add, contract, dut.time_s[is_hb & ~is_bootup],
-                                         segment[is_hb & ~is_bootup],
+    beats = is_hb & ~is_bootup
+    out.detail["heartbeat"] = _heartbeat(add, contract, dut.time_s[beats], segment[beats],
                                          resolution_ms(contract.frames[(contract.heartbeat_id,
                                                                         False)]), node,
                                          last_power_up=_last_power_up(dut.time_s, is_bootup),
-                                         end_s=duration_s if duration_s > 0 else None)
+                                         end_s=_heard_end(duration_s, dut.time_s[is_hb],
+                                                          unheard_s),
+                                         series=series[beats])
     # boot-up: first, and once per power-up
     before = int(np.count_nonzero(segment == 0))
     bootups = int(np.count_nonzero(is_bootup))
@@ -300,10 +320,34 @@ def judge(log: FrameLog, contract: BusContract, profile: DutProfile, *, clock: s
                              "bitrate_bps": contract.bitrate_bps},
                       node=contract.node_name, node_id=contract.node_id, clock=clock,
                       databases=list(contract.databases))
+    if unheard_s.size:
+        out.detail["unheard"] = {
+            "frames": int(unheard_s.size), "first_s": float(unheard_s[0]),
+            "last_s": float(unheard_s[-1]), "file": UNHEARD_NAME,
+            "note": "the DUT's frames a fault kept from the rig (a cut wire): not received, so "
+                    "not judged; intervals across them are not judged either"}
     if clock == "realtime":
+        unheard_commands = unheard.time_s[np.isin(
+            checks.frame_keys(unheard),
+            np.array(sorted(contract.command_ids), dtype=np.int64)) & ~unheard.extended]
         out.detail["sync_latency"] = _latency(add, contract, log.time_s[sync_mask], dut, keys,
-                                              node, physics_period_s * 1000.0, bus_load)
+                                              node, physics_period_s * 1000.0, bus_load,
+                                              unheard_commands_s=np.sort(unheard_commands))
     return out
+
+
+def _heard_end(duration_s: float, heartbeats_s: np.ndarray,
+               unheard_s: np.ndarray) -> float | None:
+    """Where the heartbeat's last gap ends: the end of the run, or the first of the DUT's
+    frames a fault kept from the rig after its last heard heartbeat (the silence after it is
+    the fault's). None when the run's length is unknown."""
+    if duration_s <= 0:
+        return None
+    if unheard_s.size and heartbeats_s.size:
+        later = unheard_s[unheard_s > heartbeats_s.max()]
+        if later.size:
+            return min(duration_s, float(later[0]))
+    return duration_s
 
 
 def _label(key: int) -> str:
@@ -344,7 +388,10 @@ def _band(profile_limits: dict[str, Any], default: float) -> tuple[float, float]
 
 
 def _cycle(add: _Sink, frame: DeclaredFrame, time_s: np.ndarray, segment: np.ndarray,
-           resolution_ms: float, node: dict[str, Any], *, realtime: bool) -> dict[str, Any]:
+           resolution_ms: float, node: dict[str, Any], *, realtime: bool,
+           cut: int = 0) -> dict[str, Any]:
+    """``segment``: the unbroken series of each frame; ``cut``: how many intervals across
+    frames a fault kept from the rig that leaves out."""
     gaps = checks.intervals(time_s, segment)
     if gaps.size == 0:
         return {"cycle": "fewer than two frames in one power-up"}
@@ -355,7 +402,8 @@ def _cycle(add: _Sink, frame: DeclaredFrame, time_s: np.ndarray, segment: np.nda
                                resolution_ms)
     note = (f"median {stats.median_ms:.4g} ms, min {stats.min_ms:.4g}, max {stats.max_ms:.4g} "
             f"over {stats.count} intervals; declared {frame.cycle_ms:g} ms "
-            f"({frame.cycle_source})" + (f"; {frame.note}" if frame.note else ""))
+            f"({frame.cycle_source})" + (f"; {frame.note}" if frame.note else "")
+            + (f"; {_cut_note(cut)}" if cut else ""))
     m1 = add("bus.cycle_time.median", stats.deviation_pct, cond, note, low=band[0],
              high=band[1])
     realtime_note = ("; real time: the intervals include the bench's own time-stamping "
@@ -366,9 +414,14 @@ def _cycle(add: _Sink, frame: DeclaredFrame, time_s: np.ndarray, segment: np.nda
              f"(+/- {resolution_ms:g} ms time-stamp resolution){realtime_note}",
              high=None if realtime else OUTSIDE_BAND_PCT)
     return {"median_ms": stats.median_ms, "min_ms": stats.min_ms, "max_ms": stats.max_ms,
-            "intervals": stats.count, "outside": stats.outside,
+            "intervals": stats.count, "outside": stats.outside, "intervals_cut": cut,
             "resolution_ms": resolution_ms,
             "cycle_outcome": _worst(m1.outcome.value, m2.outcome.value)}
+
+
+def _cut_note(cut: int) -> str:
+    return (f"{cut} interval{'s' if cut != 1 else ''} across frames a fault kept from the rig "
+            f"(a cut wire, {UNHEARD_NAME}) not judged")
 
 
 def _worst(*outcomes: str) -> str:
@@ -402,9 +455,14 @@ def _trailing_gap_s(time_s: np.ndarray, segment: np.ndarray,
 def _heartbeat(add: _Sink, contract: BusContract, time_s: np.ndarray, segment: np.ndarray,
                resolution_ms: float, node: dict[str, Any], *,
                last_power_up: tuple[int, float] | None = None,
-               end_s: float | None = None) -> dict[str, Any]:
+               end_s: float | None = None,
+               series: np.ndarray | None = None) -> dict[str, Any]:
+    """``segment``: the power-up of each heartbeat; ``series``: its unbroken series (a
+    power-up cut where the DUT's frames did not reach the rig), which the intervals keep to."""
     declared = contract.heartbeat_period_ms
-    gaps = checks.intervals(time_s, segment)
+    series = segment if series is None else series
+    gaps = checks.intervals(time_s, series)
+    cut = checks.intervals_cut(segment, series)
     out: dict[str, Any] = {"id": f"0x{contract.heartbeat_id:03X}", "declared_ms": declared,
                            "frames": int(time_s.size)}
     band = _band(add.limits("bus.heartbeat.period"), HEARTBEAT_TOLERANCE_PCT)
@@ -412,15 +470,16 @@ def _heartbeat(add: _Sink, contract: BusContract, time_s: np.ndarray, segment: n
     m = add("bus.heartbeat.period", stats.deviation_pct, dict(node),
             f"median {stats.median_ms:.4g} ms, min {stats.min_ms:.4g}, max "
             f"{stats.max_ms:.4g} over {stats.count} intervals; declared {declared:g} ms "
-            "(timing.heartbeat_period_ms)" if stats.count else "no heartbeat interval",
-            low=band[0], high=band[1])
+            "(timing.heartbeat_period_ms)" + (f"; {_cut_note(cut)}" if cut else "")
+            if stats.count else "no heartbeat interval", low=band[0], high=band[1])
     trailing_ms = 1000.0 * _trailing_gap_s(time_s, segment, last_power_up, end_s)
     longest = [v for v in (stats.max_ms if stats.count else math.nan, trailing_ms)
                if not math.isnan(v)]
     silence_ms = max(longest) if longest else math.nan
     out.update(median_ms=stats.median_ms, min_ms=stats.min_ms, max_ms=stats.max_ms,
                trailing_ms=trailing_ms, longest_silence_ms=silence_ms,
-               intervals=stats.count, outcome=m.outcome.value, consumers=[])
+               intervals=stats.count, intervals_cut=cut, outcome=m.outcome.value,
+               consumers=[])
     consumers = [(c.name, c.time_ms, "(0x1016)") for c in contract.consumers]
     if not consumers:
         consumers = [("rig's heartbeat monitor", RIG_MONITOR_FACTOR * declared + resolution_ms,
@@ -440,10 +499,12 @@ def _heartbeat(add: _Sink, contract: BusContract, time_s: np.ndarray, segment: n
 
 def _latency(add: _Sink, contract: BusContract, sync_s: np.ndarray, dut: FrameLog,
              keys: np.ndarray, node: dict[str, Any], resolution_ms: float,
-             bus_load: float) -> dict[str, Any]:
+             bus_load: float, *, unheard_commands_s: np.ndarray | None = None
+             ) -> dict[str, Any]:
     commands = np.isin(keys, np.array(sorted(contract.command_ids), dtype=np.int64)) \
         & ~dut.extended
-    latency_ms = checks.sync_latency(sync_s, dut.time_s[commands]) * 1000.0
+    unheard = np.zeros(0) if unheard_commands_s is None else unheard_commands_s
+    latency_ms = checks.heard_sync_latency(sync_s, dut.time_s[commands], unheard) * 1000.0
     period = contract.control_period_ms
     if latency_ms.size == 0:
         for name in ("bus.sync_latency.p50", "bus.sync_latency.p99", "bus.sync_latency.max"):

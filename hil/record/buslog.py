@@ -16,6 +16,12 @@ about 1 µs. They are the writer's own, byte for byte: each format's formatter i
 its python-can writer on probe frames when the log is opened, and a writer whose output differs
 (another python-can version, say) gets every frame the ordinary way.
 
+What the logs hold: what the rig received (``R``, ``Rx``) and what it sent (``T``, ``Tx``), as
+a bus monitor on the rig's interface would have them. A frame of the DUT that a fault kept from
+the rig (a cut wire: :meth:`hil.rig.Rig.admits`) was never received and is in neither: it goes
+to ``bus-unheard.log`` (:class:`UnheardLog`, candump, the DUT's frames as ``T``: sent by the DUT,
+heard by nobody), so that what the DUT said during the cut can still be read.
+
 Time: frames carry the run's clock (seconds from the run's start). The ``.asc`` trigger block
 and the header's ``date`` line are dated with the wall-clock time of the first frame (the run's
 start plus that frame's run time), not python-can's ``datetime.fromtimestamp(first time
@@ -335,3 +341,54 @@ class BusLog:
                 problems.append(exc)
         if problems:
             raise problems[0]
+
+
+#: where the DUT's frames nobody heard go, beside the bus logs
+UNHEARD_NAME = "bus-unheard.log"
+
+
+class UnheardLog:
+    """The DUT's frames a fault kept from the rig, in candump lines.
+
+    Each as ``T`` (sent, by the DUT), in run time, through python-can's own writer (they are
+    few: a cut wire's seconds).
+
+    Parameters
+    ----------
+    directory
+        The run's directory (the file is ``bus-unheard.log`` there).
+    channel
+        The channel name written (the bus log's).
+    """
+
+    def __init__(self, directory: Path, *, channel: str = "can0") -> None:
+        self.path = directory / UNHEARD_NAME
+        self.channel = channel
+        self._writer = CanutilsLogWriter(self.path)
+        self.frames = 0
+        self.first_s: float | None = None
+        self.last_s: float | None = None
+        self.ids: dict[str, int] = {}
+
+    def write(self, msg: can.Message, time_s: float) -> None:
+        """Log ``msg``, a DUT frame nobody received, at run time ``time_s``."""
+        self._writer.on_message_received(_stamped(msg, time_s, rx=False, channel=self.channel))
+        self.frames += 1
+        if self.first_s is None:
+            self.first_s = time_s
+        self.last_s = time_s
+        label = (f"0x{msg.arbitration_id:08X}" if msg.is_extended_id
+                 else f"0x{msg.arbitration_id:03X}")
+        self.ids[label] = self.ids.get(label, 0) + 1
+
+    def summary(self) -> dict[str, Any]:
+        """What the record says of them: how many, when, which identifiers, the file."""
+        def stamp(t: float | None) -> float | None:
+            return None if t is None else round(t, 6)       # the log's resolution
+        return {"frames": self.frames, "first_s": stamp(self.first_s),
+                "last_s": stamp(self.last_s),
+                "ids": dict(sorted(self.ids.items())), "file": self.path.name}
+
+    def close(self) -> None:
+        """Write what is pending and close the file."""
+        self._writer.stop()

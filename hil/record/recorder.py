@@ -5,6 +5,8 @@ Layout of ``out_dir``::
     record.json   run id, clock, bus spec, seeds, versions, timing health, measurements, verdict
     bus.log       candump log of every frame the rig sent or received
     bus.asc       the same, Vector ASC
+    bus-unheard.log  candump log of the DUT's frames a fault kept from the rig (a cut wire):
+                  sent, never received, so in neither bus log (only when there were any)
     traces.npz    named signal traces with units (traces.csv on request)
 
 On any exception (Ctrl-C included) leaving the ``with`` block, the recorder writes all of it
@@ -28,7 +30,7 @@ from typing import Any
 from hil.clock.base import TimingHealth
 from hil.measurements import Measurement, Outcome
 from hil.record.atomic import write_json_atomic
-from hil.record.buslog import DEFAULT_FORMATS, BusLog
+from hil.record.buslog import DEFAULT_FORMATS, BusLog, UnheardLog
 from hil.record.traces import TraceSet
 
 
@@ -120,6 +122,8 @@ class Recorder:
         self.started_at = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
         self._bus_log_formats = bus_log_formats
         self.bus_log: BusLog | None = None
+        #: the DUT's frames nobody heard (:meth:`log_unheard`), opened at the first one
+        self.unheard_log: UnheardLog | None = None
         self._closed = False
         #: the record as written to record.json (set by :meth:`close`)
         self.final_record: dict[str, Any] = {}
@@ -141,6 +145,21 @@ class Recorder:
         """Log one frame the rig sent (``rx=False``) or received at run time ``time_s``."""
         if self.bus_log is not None:
             self.bus_log.write(msg, time_s, rx=rx)
+
+    def log_unheard(self, msg: Any, time_s: float) -> None:
+        """Log a frame of the DUT that a fault kept from the rig, at run time ``time_s``.
+
+        A cut wire: the rig's :meth:`~hil.rig.Rig.admits` refused it.
+
+        The bus logs are what the rig received: such a frame is in neither. It goes to
+        ``bus-unheard.log`` (candump, opened at the first one), so what the DUT said while
+        nobody heard it can still be read, and the record counts them (``unheard``).
+        """
+        if self.bus_log is None:
+            return
+        if self.unheard_log is None:
+            self.unheard_log = UnheardLog(self.out_dir, channel=self.bus_log.channel)
+        self.unheard_log.write(msg, time_s)
 
     def measure(self, measurement: Measurement) -> Measurement:
         """Keep a judged measurement for the record; returns it."""
@@ -164,6 +183,7 @@ class Recorder:
             "versions": versions(),
             "command": sys.argv,
             "artifacts": self._artifacts(),
+            **({"unheard": self.unheard_log.summary()} if self.unheard_log else {}),
             **self.meta,
         }
 
@@ -171,6 +191,8 @@ class Recorder:
         names = ["record.json"]
         if self.bus_log is not None:
             names += [p.name for p in self.bus_log.paths]
+        if self.unheard_log is not None:
+            names.append(self.unheard_log.path.name)
         if self.save_traces:
             names.append("traces.npz")
             if self.csv:
@@ -183,11 +205,13 @@ class Recorder:
             return self.final_record
         self._closed = True
         problems = []
-        if self.bus_log is not None:
+        for name, log in (("bus log", self.bus_log), ("unheard frames", self.unheard_log)):
+            if log is None:
+                continue
             try:
-                self.bus_log.close()
+                log.close()
             except Exception as exc:
-                problems.append(f"bus log: {exc}")
+                problems.append(f"{name}: {exc}")
         try:
             if self.save_traces:
                 self.traces.save_npz(self.out_dir / "traces.npz")
