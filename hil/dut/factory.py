@@ -53,7 +53,8 @@ def check_bus_for_dut(bus: str, dut_kind: str, *, inprocess_twin: bool = False) 
     bus : str
         The ``--bus`` spec.
     dut_kind : str
-        The profile's ``dut.kind`` (``firmware``, ``daemon``, ``inprocess``, ``physical``).
+        The profile's ``dut.kind`` (``firmware``, ``daemon``, ``inprocess``, ``physical``,
+        ``fmu``).
     inprocess_twin : bool
         The profile names an in-process twin (``launch.inprocess``): a daemon then runs on
         ``inline`` in-process.
@@ -63,7 +64,7 @@ def check_bus_for_dut(bus: str, dut_kind: str, *, inprocess_twin: bool = False) 
     ConfigError
         The bus lives inside the rig's process and the DUT does not.
     """
-    if not in_process_bus(bus) or dut_kind == "inprocess":
+    if not in_process_bus(bus) or dut_kind in ("inprocess", "fmu"):
         return
     if bus == "inline" and inprocess_twin and dut_kind == "daemon":
         return
@@ -74,15 +75,19 @@ def check_bus_for_dut(bus: str, dut_kind: str, *, inprocess_twin: bool = False) 
 
 
 def runs_inprocess(profile: DutProfile, bus: str) -> bool:
-    """In-process DUTs always; daemons with an in-process twin on the inline bus (lockstep)."""
+    """In-process DUTs and FMUs always; daemons with a twin on the inline bus (lockstep)."""
     kind = profile.dut.kind
-    return kind == "inprocess" or (bus == "inline" and bool(profile.launch.inprocess)
+    return kind in ("inprocess", "fmu") or (bus == "inline" and bool(profile.launch.inprocess)
                                    and kind == "daemon")
 
 
 def make_dut(profile: DutProfile, *, bus: str, clock: str,
              log_dir: Path | None = None) -> tuple[DutRunner, dict[str, Any]]:
     """The runner for ``profile`` on ``bus``/``clock``, and build facts for the record."""
+    if profile.dut.kind == "fmu":
+        from hil.dut.fmu import make_fmu_dut
+
+        return make_fmu_dut(profile)
     if runs_inprocess(profile, bus):
         dut = InProcessDut(load_controller(profile), factory=lambda: load_controller(profile))
         dut.name = profile.name
