@@ -23,7 +23,9 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from hil.isobus.vt.render import render, visible_signature
+from hil.isobus.vt.commands import is_enabled
+from hil.isobus.vt.layouts import ObjectType
+from hil.isobus.vt.render import GAP, render, visible_signature
 from hil.isobus.vt.server import VirtualTerminalServer
 from hil.isobus.vt.workingset import WorkingSet
 
@@ -70,6 +72,10 @@ class ScreenRecorder:
         self.dropped = 0
         #: the latest screen's PNG bytes per working set address
         self.latest_png: dict[int, bytes] = {}
+        #: the latest screen per address as (count, PNG, hotspots), replaced whole (other
+        #: threads read it: the browser VT)
+        self.latest: dict[int, tuple[int, bytes, tuple[Hotspot, ...]]] = {}
+        self.drawn = 0
         self._last: dict[int, tuple[float, tuple[object, ...], int]] = {}
         self._pending: set[int] = set()
         vt.on_change.append(self._on_change)
@@ -107,6 +113,11 @@ class ScreenRecorder:
         image.save(buffer, format="PNG")
         png = buffer.getvalue()
         self.latest_png[ws.address] = png
+        self.drawn += 1
+        self.latest[ws.address] = (self.drawn, png, hotspots(ws, o.data_mask_px,
+                                                              o.soft_key_width_px,
+                                                              o.soft_key_height_px,
+                                                              o.physical_soft_keys))
         if len(self.screens) >= self.max_screens:
             self.dropped += 1
             return None
@@ -118,6 +129,38 @@ class ScreenRecorder:
                         reason, name, hashlib.sha256(png).hexdigest())
         self.screens.append(screen)
         return screen
+
+
+@dataclass(frozen=True)
+class Hotspot:
+    """Where a soft key or button is on a screen, for pressing it in the browser."""
+
+    object_id: int
+    kind: str
+    label: str
+    x: int
+    y: int
+    w: int
+    h: int
+    enabled: bool = True
+
+
+def hotspots(ws: WorkingSet, mask_px: int, key_w: int, key_h: int,
+             keys: int) -> tuple[Hotspot, ...]:
+    """The soft keys (in the column right of the mask) and the buttons shown on the mask."""
+    out: list[Hotspot] = []
+    skm = ws.resolve(ws.soft_key_mask)
+    if skm is not None:
+        for i, key_id in enumerate(skm["keys"][:keys]):
+            key = ws.resolve(key_id)
+            if key is not None and key.type == ObjectType.KEY:
+                out.append(Hotspot(key.object_id, "key", ws.label(key.object_id),
+                                   mask_px + GAP, i * (key_h + GAP), key_w, key_h))
+    for obj, x, y, _parent in ws.visible(ws.active_mask):
+        if obj.type == ObjectType.BUTTON and x < mask_px and y < mask_px:
+            out.append(Hotspot(obj.object_id, "button", ws.label(obj.object_id), x, y,
+                               obj["width"], obj["height"], is_enabled(obj)))
+    return tuple(out)
 
 
 def vt_record(vt: VirtualTerminalServer, recorder: ScreenRecorder | None = None,

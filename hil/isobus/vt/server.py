@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import heapq
 import math
+import queue
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import ClassVar
@@ -67,6 +68,8 @@ STATUS_PERIOD_S = 1.0
 """The VT status period (ISO 11783-6)."""
 WORKING_SET_TIMEOUT_S = 3.0
 """A working set silent this long (no maintenance message) is gone."""
+INBOX_POLL_S = 0.05
+"""How often the VT looks for actions posted from another thread, once there have been any."""
 KEY_REPEAT_S = 0.2
 """How often a held soft key or button is reported as still held."""
 PRIORITY = 5
@@ -177,6 +180,8 @@ class VirtualTerminalServer:
         self._timers: list[_Timer] = []
         self._seq = 0
         self._now = 0.0
+        #: actions posted from other threads (the browser VT), run at the next tick
+        self._inbox: queue.SimpleQueue[Callable[[float], None]] | None = None
         port.subscribe(ECU_TO_VT_PGN, self._on_message)
         port.subscribe(WORKING_SET_MASTER_PGN, self._on_working_set_master)
 
@@ -187,6 +192,9 @@ class VirtualTerminalServer:
         self._now = now_s
         if self._down(now_s) or self.port.address is None:
             return
+        if self._inbox is not None:
+            while not self._inbox.empty():
+                self._inbox.get_nowait()(now_s)
         while self._timers and self._timers[0].time_s <= now_s + 1e-9:
             heapq.heappop(self._timers).action(now_s)
         if self._next_status_s is None or now_s >= self._next_status_s - 1e-9:
@@ -219,6 +227,8 @@ class VirtualTerminalServer:
         due = now_s if self._next_status_s is None else self._next_status_s
         if self._timers:
             due = min(due, self._timers[0].time_s)
+        if self._inbox is not None:
+            due = min(due, now_s + INBOX_POLL_S)
         for ws in self.sessions.values():
             due = min(due, ws.last_seen_s + WORKING_SET_TIMEOUT_S)
             if ws.lock_until_s is not None:
@@ -229,6 +239,13 @@ class VirtualTerminalServer:
         """Run ``action(now)`` at run time ``time_s`` (the scripted operator's timeline)."""
         self._seq += 1
         heapq.heappush(self._timers, _Timer(time_s, self._seq, action))
+
+    def post(self, action: Callable[[float], None]) -> None:
+        """Run ``action(now)`` at the VT's next tick; safe from any thread (the browser VT
+        posts the operator's presses here). Once used, the VT polls every 50 ms."""
+        if self._inbox is None:
+            self._inbox = queue.SimpleQueue()
+        self._inbox.put(action)
 
     def restart(self, now_s: float, *, down_s: float = 0.0) -> None:
         """Restart the VT: working sets and their pools lost, stored versions kept; silent for
