@@ -12,6 +12,7 @@ needs.
 
 from __future__ import annotations
 
+import bisect
 import math
 import time
 from collections import deque
@@ -139,9 +140,8 @@ class ScriptedNode(Device):
         self.heard: list[tuple[float, can.Message]] = []
 
     def at(self, time_s: float, frame: can.Message) -> None:
-        """Add a frame to send at ``time_s``."""
-        self.script.append((time_s, frame))
-        self.script.sort(key=lambda p: p[0])
+        """Add a frame to send at ``time_s`` (after those scripted for the same time)."""
+        bisect.insort_right(self.script, (time_s, frame), key=lambda p: p[0])
 
     def next_due(self, time_s: float) -> float:
         """The time of the next scripted frame (at once if one is overdue)."""
@@ -151,8 +151,9 @@ class ScriptedNode(Device):
 
     def emit(self, time_s: float) -> list[can.Message]:
         """The scripted frames due by ``time_s`` (each once)."""
-        due = [f for t, f in self.script if t <= time_s]
-        self.script = [(t, f) for t, f in self.script if t > time_s]
+        n = bisect.bisect_right(self.script, time_s, key=lambda p: p[0])
+        due = [f for _, f in self.script[:n]]
+        del self.script[:n]     # the script is sorted: a long one costs its length once
         return due
 
     def accepts(self, msg: can.Message) -> bool:
