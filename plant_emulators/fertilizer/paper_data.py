@@ -2,7 +2,8 @@
 
 Wang Hui et al., "Design and Test of Fertilizer Flow Piecewise PID Control System of Fertilizer
 Planter", Trans. CSAM 54(2):32-40, 2023, doi:10.6041/j.issn.1000-1298.2023.02.003, as
-transcribed in ``/work/shared/docs/papers.md``. Values only: no model code lives here.
+transcribed in docs/reference/sources.md (Tables 1 and 2, the step and field results). Values
+only: no model code lives here.
 """
 
 from __future__ import annotations
