@@ -143,7 +143,7 @@ class PoolBuilder:
 
     def output_number(self, variable: int = NO_OBJECT, font: int = NO_OBJECT, width: int = 100,
                       height: int = 20, object_id: int | None = None, **attrs: Any) -> int:
-        """An output number shown as (value + offset) * scale with ``decimals``."""
+        """An output number shown as ``(value + offset) * scale`` with ``decimals``."""
         return self.add(T.OUTPUT_NUMBER, object_id, variable_reference=variable,
                         font_attributes=font, width=width, height=height,
                         background_colour=attrs.pop("background_colour", 1), **attrs)

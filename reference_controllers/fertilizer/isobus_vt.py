@@ -1,0 +1,150 @@
+"""The reference ISOBUS implement with its operator interface on a Virtual Terminal (issue 39).
+
+:class:`IsobusVtFlowController` is :class:`~reference_controllers.fertilizer.isobus_mode.
+IsobusFlowController` plus a VT client (:class:`hil.isobus.vt.client.VtClient`) on the same
+control function, with the pool of :mod:`reference_controllers.fertilizer.operator_pool`:
+
+- **it refuses to meter before its pool is active on a VT**, as a market implement does
+  (the operator has no master switch, no alarm, no calibration without one): its policy,
+  stated in the docs; and it meters only while the operator's **Master** is on (off at
+  power-up; each release of the Master soft key toggles it);
+- the **Calibration** mask's two inputs (grams per revolution, shaft speed of the test) are
+  the operator's calibration test: the feedforward map's coefficient from then on
+  (:meth:`FlowController.calibrate`, the same expression as the MeterCalibration frame);
+- the **Run** mask shows the TC's rate set-point and each row's actual rate, refreshed every
+  second (only values that changed are sent);
+- a row switched on whose flow is lost (no valid report, or left out by the cross-row check)
+  for :data:`ALARM_AFTER_S` while metering raises the **Alarm** mask ("Row N: flow lost");
+  *Ack* returns to the Run mask; a row alarms again only after it has recovered.
+
+The pool is stored on the VT under :data:`~reference_controllers.fertilizer.operator_pool.
+VERSION_LABEL`, so after a VT restart the controller loads it instead of uploading it.
+
+This is the Python build only; the C ISOBUS build has no VT client yet.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import can
+
+from hil.isobus.vt.client import KeyEvent, VtClient
+from hil.isobus.vt.messages import KeyActivation
+from reference_controllers.fertilizer.isobus_mode import IsobusFlowController
+from reference_controllers.fertilizer.operator_pool import (
+    ALARM_TEXT_LENGTH,
+    IDS,
+    VERSION_LABEL,
+    meter_vt_pool,
+)
+from reference_controllers.params import ParamValue
+
+ALARM_AFTER_S = 1.0
+"""A row's flow lost this long while metering raises the alarm."""
+DISPLAY_PERIOD_S = 1.0
+"""How often the Run mask's values are refreshed (changed ones only)."""
+
+
+class IsobusVtFlowController(IsobusFlowController):
+    """The ISOBUS reference with its VT operator interface (see the module docstring)."""
+
+    def __init__(self, law: str | None = None, params: Mapping[str, ParamValue] | None = None,
+                 **kwargs: Any) -> None:
+        super().__init__(law, params, **kwargs)
+        self.name = f"{self.name}-vt"
+        self.vt_pool = meter_vt_pool(self.row_count)
+        self.vt = VtClient(self.port, [self.vt_pool.to_bytes()], VERSION_LABEL)
+        self.vt.on_key = self._on_key
+        self.vt.on_number = self._on_number
+        self.port.run(self.vt)
+        #: the operator's master switch (off at power-up)
+        self.master_on = False
+        #: the calibration test entered on the VT: (grams per revolution, shaft rpm)
+        self.calibration: tuple[float, float] = (0.0, 21.0)
+        self.alarm_row: int | None = None
+        self._shown: dict[int, int] = {}
+        self._next_display_s = 0.0
+        self._lost_since: dict[int, float] = {}
+        self._alarmed: set[int] = set()
+
+    # -- the operator --------------------------------------------------------------------------
+
+    def _on_key(self, event: KeyEvent) -> None:
+        if event.activation != KeyActivation.RELEASED:
+            return
+        if event.object_id == IDS.key_master:
+            self.master_on = not self.master_on
+            self.vt.change_string_value(IDS.master_var, b"ON " if self.master_on else b"OFF")
+        elif event.object_id == IDS.key_calibration:
+            self.vt.change_active_mask(IDS.working_set, IDS.calibration)
+        elif event.object_id in (IDS.key_back, IDS.key_ack):
+            self.alarm_row = None
+            self.vt.change_active_mask(IDS.working_set, IDS.run)
+
+    def _on_number(self, object_id: int, value: int, time_s: float) -> None:
+        grams, rpm = self.calibration
+        if object_id == IDS.cal_grams_in:
+            grams = value / 10.0
+        elif object_id == IDS.cal_rpm_in:
+            rpm = value / 10.0
+        else:
+            return
+        self.calibration = (grams, rpm)
+        self.calibrate(grams, rpm)
+
+    # -- the policy ----------------------------------------------------------------------------
+
+    def metering(self) -> bool:
+        """As the ISOBUS reference, and only with its pool active on a VT and Master on."""
+        return self.vt.state == "connected" and self.master_on and super().metering()
+
+    # -- the step ------------------------------------------------------------------------------
+
+    def step(self) -> list[can.Message]:
+        """The ISOBUS reference's step, then the VT's: alarms, the Run mask's values."""
+        out = super().step()
+        if self.vt.state == "connected":
+            self._watch_rows()
+            if self.clock_s >= self._next_display_s - 1e-9:
+                self._next_display_s = self.clock_s + DISPLAY_PERIOD_S
+                self._refresh()
+        return out
+
+    def _row_rate_kg_ha(self, row: int) -> float:
+        speed = self.ground_speed()
+        report = self.rows.reports.get(row)
+        if speed is None or speed[1] < 0.05 or report is None or not self.metering():
+            return 0.0
+        return max(0.0, report.flow_gps / (0.1 * self.row_width_m * speed[1]))
+
+    def _refresh(self) -> None:
+        values = {IDS.rate_var: round(self.rate_kg_ha * 10)}
+        for row in range(1, self.row_count + 1):
+            values[IDS.row_var(row)] = round(self._row_rate_kg_ha(row) * 10)
+        for var, value in values.items():
+            if self._shown.get(var) != value:
+                self._shown[var] = value
+                self.vt.change_numeric_value(var, value)
+
+    def _watch_rows(self) -> None:
+        target = self.target_gps()
+        metering = self.metering() and target > 0.0
+        now = self.clock_s
+        for row in range(1, self.row_count + 1):
+            report = self.rows.reports.get(row)
+            lost = metering and row in self.rows.active and (
+                report is None or not self.rows.valid(report, target, self.steps - 1)
+                or row in self.rows.excluded)
+            if not lost:
+                self._lost_since.pop(row, None)
+                self._alarmed.discard(row)
+                continue
+            since = self._lost_since.setdefault(row, now)
+            if now - since >= ALARM_AFTER_S - 1e-9 and row not in self._alarmed:
+                self._alarmed.add(row)
+                self.alarm_row = row
+                text = f"Row {row}: flow lost".ljust(ALARM_TEXT_LENGTH).encode("latin-1")
+                self.vt.change_string_value(IDS.alarm_var, text)
+                self.vt.change_active_mask(IDS.working_set, IDS.alarm)
