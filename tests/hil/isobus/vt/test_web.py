@@ -124,3 +124,30 @@ def test_the_page_in_chromium_shows_the_mask_and_presses_a_key(
         assert outside == []
     finally:
         browser.close()
+
+
+def test_attach_vt_to_a_tractor_network(tmp_path: Any) -> None:
+    from hil.isobus.network import IsobusNetwork
+    from hil.isobus.vt.attach import attach_vt
+    from hil.isobus.vt.bench import IMPLEMENT_ADDRESS, IMPLEMENT_NAME
+    from hil.isobus.vt.client import VtClient
+    from hil.isobus.wire import VirtualWire
+
+    tractor_network = IsobusNetwork(name="tractor")
+    lines: list[str] = []
+    attached = attach_vt(tractor_network, screens_dir=tmp_path / "vt", browser_port=0,
+                         console=lines.append)
+    try:
+        implement = IsobusNetwork(name="implement")
+        cf = implement.add(IMPLEMENT_NAME, IMPLEMENT_ADDRESS, "implement")
+        cf.run(VtClient(cf, [implement_pool().to_bytes()]))
+        VirtualWire([tractor_network, implement]).run_until(3.0)
+        assert lines == [f"the VT in the browser: {attached.browser.url}"]  # type: ignore[union-attr]
+        state = json.loads(get(attached.browser.url + "state.json")[1])  # type: ignore[union-attr]
+        assert state["mask"] == IDS.home
+    finally:
+        path = attached.close()
+    assert path is not None
+    record = json.loads(path.read_text())
+    assert record["working_sets"][0]["pool_bytes"] == implement_pool().size
+    assert (tmp_path / "vt" / "screen-0001.png").is_file()
