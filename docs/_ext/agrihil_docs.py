@@ -3,9 +3,9 @@
 ``measurement-catalogue``
     Every measurement of ``hil/limits.py`` for one rig (``:rig:``): name, unit, definition, the
     default limit a qualification judges it against when the DUT's profile sets none
-    (``hil.limits.default_limit_text``), and the limit the rig's reference profile sets (the
-    limits a new profile usually starts from); per-condition limits as such
-    (``to_mm=20: <= 2; otherwise <= 3``), and the conditions each measurement carries.
+    (``hil.limits.default_limit_text``) and the standard it comes from, or why the measurement
+    is information only; per-condition limits as such (``to_mm=20: <= 2; otherwise <= 3``), and
+    the conditions each measurement carries. ``hil limits`` prints the same table.
 ``pytest-plugin-options``
     The ``--hil-*`` options of the pytest plugin, read from its ``pytest_addoption``.
 """
@@ -23,12 +23,6 @@ from sphinx.util.docutils import SphinxDirective
 
 ROOT = Path(__file__).resolve().parents[2]
 
-#: the profile whose limits the catalogue shows as defaults, per rig
-REFERENCE_PROFILES = {
-    "fertilizer": "dut_profiles/fertilizer-piecewise-pid-daemon.toml",
-    "sowing_depth": "dut_profiles/sowing-depth-fuzzy-pid-daemon.toml",
-}
-
 
 def _cell(text: str) -> str:
     return " ".join(str(text).split()).replace("|", "\\|")
@@ -40,18 +34,6 @@ def _table(header: list[str], rows: list[list[str]]) -> list[str]:
              "|" + "---|" * len(header)]
     lines.extend("| " + " | ".join(_cell(c) for c in row) + " |" for row in rows)
     return lines
-
-
-def _limit_text(limit: Any) -> str:
-    """The profile's limit in words, its per-condition cases first (``to_mm=20: <= 2``)."""
-    from hil.limits import limit_text
-
-    if limit is None:
-        return "not set: the default applies"
-    text = limit_text(limit.low, limit.high, limit.cases, otherwise="the default")
-    if getattr(limit, "marginal", None) is not None:
-        text += f" (marginal band {limit.marginal:g})"
-    return text
 
 
 def _definition(spec: Any) -> str:
@@ -72,25 +54,22 @@ class _Generated(SphinxDirective):
 
 
 class MeasurementCatalogue(_Generated):
-    """The measurement catalogue of one rig, with the reference profile's limits."""
+    """The measurement catalogue of one rig: default limits and where they come from."""
 
     option_spec: ClassVar[dict[str, Any]] = {"rig": directives.unchanged_required}
 
     def run(self) -> list[nodes.Node]:
-        from hil.dut.profile import load_profile
         from hil.limits import MEASUREMENTS, default_limit_text
 
         rig = self.options["rig"]
-        profile_path = ROOT / REFERENCE_PROFILES[rig]
-        self.env.note_dependency(str(profile_path))
         self.env.note_dependency(str(ROOT / "hil" / "limits.py"))
-        profile = load_profile(profile_path)
-        rows = [[f"`{spec.name}`", spec.unit, _definition(spec), default_limit_text(name),
-                 _limit_text(profile.limit(name))]
+        rows = [[f"`{spec.name}`", spec.unit, _definition(spec),
+                 "information only" if spec.information else default_limit_text(name),
+                 spec.information or spec.source or "(not stated)"]
                 for name, spec in MEASUREMENTS.items() if spec.rig in (rig, "*")]
         return self._emit(_table(["measurement", "unit", "definition",
                                   "default limit (the profile sets none)",
-                                  f"limit in {profile_path.name}"], rows))
+                                  "from (or why information only)"], rows))
 
 
 class PytestPluginOptions(_Generated):

@@ -18,31 +18,16 @@ from __future__ import annotations
 import dataclasses
 import fcntl
 import hashlib
-import os
 import re
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 from hil.dut.base import DutError
-from hil.dut.paths import PROJECT_ROOT
+from hil.dut.code_identity import digest_sources, expand_placeholders
+from hil.dut.paths import PROJECT_ROOT, build_entry
 from hil.dut.profile import DutProfile
 from hil.errors import ConfigError
-
-SKIP_PARTS = {"build", ".git", "__pycache__"}
-
-
-def cache_root() -> Path:
-    """The build cache's directory.
-
-    ``$AGRIHIL_CACHE`` if set, else ``agrihil`` under ``$XDG_CACHE_HOME`` (default ``~/.cache``).
-    """
-    explicit = os.environ.get("AGRIHIL_CACHE")
-    if explicit:
-        return Path(explicit)
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "agrihil"
 
 
 def profile_dir(profile: DutProfile) -> Path:
@@ -85,21 +70,14 @@ def source_sha256(profile: DutProfile) -> str:
         A build source does not exist.
     """
     assert profile.build is not None
-    digest = hashlib.sha256()
-    digest.update("\0".join(profile.build.command).encode())
+    roots = []
     for src in sorted(profile.build.sources):
         root = resolve(src, profile)
         if not root.exists():
             raise ConfigError(f"build source {src!r} does not exist ({root})",
                               path=str(profile.path), key="build.sources")
-        files = [root] if root.is_file() else sorted(
-            p for p in root.rglob("*") if p.is_file() and not SKIP_PARTS & set(
-                p.relative_to(root).parts))
-        for f in files:
-            digest.update(str(f.relative_to(PROJECT_ROOT) if f.is_relative_to(PROJECT_ROOT)
-                              else f).encode())
-            digest.update(f.read_bytes())
-    return digest.hexdigest()
+        roots.append(root)
+    return digest_sources(profile.build.command, roots)
 
 
 def build_dir(profile: DutProfile, digest: str | None = None) -> Path:
@@ -110,8 +88,7 @@ def build_dir(profile: DutProfile, digest: str | None = None) -> Path:
     reference firmware, the examples built from ``firmware/``) share one build instead of
     each making its own (a full firmware build: ~17 s on a loaded 2-core host).
     """
-    key = (digest or source_sha256(profile))[:16]
-    return cache_root() / "builds" / f"build-{key}"
+    return build_entry(digest or source_sha256(profile))
 
 
 def expand(arg: str, profile: DutProfile, *, bus: str = "", build: Path | None = None) -> str:
@@ -137,12 +114,7 @@ def expand(arg: str, profile: DutProfile, *, bus: str = "", build: Path | None =
     str
         The argument with the placeholders replaced (an empty string for a missing bus or build).
     """
-    values = {"python": sys.executable, "root": str(PROJECT_ROOT),
-              "profile_dir": str(profile_dir(profile)), "bus": bus,
-              "build_dir": str(build) if build else ""}
-    for key, value in values.items():
-        arg = arg.replace("{" + key + "}", value)
-    return arg
+    return expand_placeholders(arg, profile_dir=profile_dir(profile), bus=bus, build=build)
 
 
 #: a build id is one line of printable text (a commit hash, a CI job's tag)

@@ -15,7 +15,8 @@ profile never starts a run. Layout (``dut_profiles/<rig>-<controller>-<kind>.tom
     [timing]      control_period_ms, heartbeat_period_ms, max_frames_per_period
     [parameters]  name = number | string | bool, handed to the controller
     [limits]      "measurement.name" = { low = …, high = …, when = [ { condition = …,
-                  high = … }, … ] } (``when``: per-condition limits, first match wins)
+                  high = … }, … ], reason = "…" } (``when``: per-condition limits, first
+                  match wins; ``reason``: why a limit looser than the catalogue's default)
     [rig]         overrides of the rig's packaged config for this DUT's installation, e.g.
                   ``flow_sensor = { mode = "sliding" }``: checked by the rig's own loader,
                   applied to every run of this DUT (and recorded in each run's record)
@@ -41,7 +42,9 @@ from typing import Any, Literal
 
 from hil.condition_limits import ConditionCase, check_band, check_names
 from hil.config import check_positive, from_mapping, key_text
-from hil.dut.paths import PROJECT_ROOT
+from hil.dut.code_identity import code_identity, digest_sources, expand_placeholders
+from hil.dut.paths import PROJECT_ROOT, build_entry
+from hil.effective_limits import loosening
 from hil.errors import ConfigError
 from hil.limits import (
     MEASUREMENTS,
@@ -269,6 +272,10 @@ class Limit:
         ``high``, ``marginal``, e.g. ``{ to_mm = 20, high = 2.0 }``; the first whose
         conditions all match gives the limit, else ``low``/``high`` apply (else the catalogue's
         default). Parsed into ``cases`` (:class:`hil.condition_limits.ConditionCase`).
+    reason : str, optional
+        Why the limit is looser than the catalogue's default (a lower ``low``, a higher
+        ``high``, a bound dropped, under any of its conditions): required then, and shown by
+        ``hil profile check`` and the report. A tighter limit needs none.
 
     Raises
     ------
@@ -281,6 +288,7 @@ class Limit:
     high: float | None = None
     marginal: float | None = None
     when: tuple[dict[str, Any], ...] = field(default=(), compare=False, repr=False)
+    reason: str = ""
     cases: tuple[ConditionCase, ...] = field(init=False, default=())
 
     def __post_init__(self) -> None:
@@ -377,12 +385,42 @@ class DutProfile:
         """The profile's limit for ``measurement``, or None if it sets none."""
         return self.limits.get(measurement)
 
-    def identity(self) -> dict[str, str]:
-        """The DUT's identity for the record: name, version, build, kind, rig, profile and hash."""
+    def identity(self) -> dict[str, Any]:
+        """The DUT's identity for the record.
+
+        Name, version, the user's ``build_id``, kind, rig, controller, the profile and its
+        hash, and ``code``: what identifies the code under test (:meth:`code_identity`).
+        """
         return {"name": self.dut.name, "version": self.dut.version,
                 "build_id": self.dut.build_id, "kind": self.dut.kind, "rig": self.dut.rig,
                 "controller": self.dut.controller,
-                "profile": str(self.path) if self.path else "", "profile_sha256": self.sha256}
+                "profile": str(self.path) if self.path else "", "profile_sha256": self.sha256,
+                "code": self.code_identity()}
+
+    def code_identity(self) -> dict[str, Any]:
+        """What identifies the code under test (:mod:`hil.dut.code_identity`).
+
+        The program the DUT's command runs (a firmware's binary once built) with its SHA-256,
+        a firmware's source set, and the git revision and dirty flag of the DUT's files.
+        """
+        where = self.path.resolve().parent if self.path else Path.cwd()
+        build: Path | None = None
+        sources: list[Path] = []
+        digest = ""
+        if self.build is not None:
+            # as hil.dut.build.source_sha256 hashes them: the cache entry's key
+            sources = [_rooted(expand_placeholders(src, profile_dir=where))
+                       for src in sorted(self.build.sources)]
+            if all(src.exists() for src in sources):
+                digest = digest_sources(self.build.command, sources)
+                build = build_entry(digest)
+        argv = [expand_placeholders(a, profile_dir=where, build=build)
+                for a in self.launch.command if a != "{params}"]
+        return code_identity(kind=self.dut.kind, argv=argv, inprocess=self.launch.inprocess,
+                             sources=sources, source_sha256=digest,
+                             built=build is not None and (build / ".built").exists(),
+                             shown_as=next((a for a in self.launch.command[:1]
+                                            if "{build_dir}" in a), ""))
 
 
 def load_profile(path: str | Path) -> DutProfile:
@@ -455,6 +493,12 @@ def must_fail_claims(path: str | Path) -> set[str]:
     text = Path(path).read_text(encoding="utf-8")
     return {name.strip() for line in MUST_FAIL_HEADER.findall(text)
             for name in line.split(",") if name.strip()}
+
+
+def _rooted(path: str) -> Path:
+    """A profile's path: absolute, else relative to the project root."""
+    p = Path(path)
+    return p if p.is_absolute() else PROJECT_ROOT / p
 
 
 def database_path(database: str, profile_path: Path | None) -> Path:
@@ -645,6 +689,18 @@ def _check(profile: DutProfile, path: str) -> None:
                 f"{', '.join(measurement_names(rig))})", path=path,
                 key=f"limits.{key_text(name)}")
         _check_cases(name, limit, path)
+        _check_loosening(name, limit, path)
+
+
+def _check_loosening(name: str, limit: Limit, path: str) -> None:
+    """A limit looser than the catalogue's default must say why (``reason``)."""
+    looser = loosening(name, limit)
+    if looser and not limit.reason.strip():
+        spec = MEASUREMENTS[name]
+        raise ConfigError(
+            f"loosens the default limit ({'; '.join(looser)}; the default is from "
+            f"{spec.source}): say why with reason = \"...\" in the entry, or keep the "
+            f"default", path=path, key=f"limits.{key_text(name)}.reason")
 
 
 def _check_cases(name: str, limit: Limit, path: str) -> None:

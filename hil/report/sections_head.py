@@ -138,6 +138,30 @@ def build_items(build: Any) -> list[tuple[str, str]]:
     return items
 
 
+def code_items(code: Any) -> list[tuple[str, str]]:
+    """Device-block rows of the code under test (the record's ``dut.code``): the program its
+    command runs with its SHA-256, an in-process twin's module, and the git revision of its
+    files with whether they differed from it."""
+    if not isinstance(code, dict) or not code:
+        return []
+    items: list[tuple[str, str]] = []
+    program = code.get("program")
+    if isinstance(program, dict):
+        label = f"program {program.get('path') or '(' + str(program.get('what')) + ')'}"
+        value = _code(program.get("sha256")) if program.get("sha256") else _text(
+            program.get("note") or "not hashed")
+        items.append((label, value))
+    module = code.get("inprocess_module")
+    if isinstance(module, dict):
+        items.append((f"in-process module {module.get('path', '?')}",
+                      _code(module.get("sha256"))))
+    git = code.get("git")
+    if isinstance(git, dict):
+        dirty = " (its files differ from it)" if git.get("dirty") else ""
+        items.append(("git revision", f"{_code(git.get('revision'))}{esc(dirty)}"))
+    return items
+
+
 def dut_build(qual: QualRecord, runs: list[RunData]) -> Any:
     """The build facts of the qualified DUT: the record's ``dut.build`` if it has one, else
     the ``dut_build`` its runs' records carry (the first run of this DUT that was built)."""
@@ -161,7 +185,8 @@ def identity_section(qual: QualRecord, runs: list[RunData]) -> str:
                  ("profile", _code(dut.get("profile"))),
                  ("profile sha256", _code(dut.get("profile_sha256")))]
     shown = {"name", "version", "build_id", "kind", "controller", "rig", "profile",
-             "profile_sha256", "build"}
+             "profile_sha256", "build", "code"}
+    dut_items += code_items(dut.get("code"))
     dut_items += build_items(dut_build(qual, runs))
     dut_items += [(k, _text(v)) for k, v in dut.items() if k not in shown]
     rig = qual.rig

@@ -4,7 +4,11 @@ from __future__ import annotations
 
 from collections import Counter
 from itertools import groupby
+from typing import Any
 
+from hil.effective_limits import RecordedLimit, origin_of
+from hil.errors import ConfigError
+from hil.limits import MEASUREMENTS, limit_text
 from hil.report.markup import (
     DASH,
     badge,
@@ -80,6 +84,7 @@ def measurements_section(qual: QualRecord, runs: list[RunData]) -> str:
     unmeasured = [name for name in qual.limits if name not in measured]
     if unmeasured:
         body += note("limits with no measurement in this record: " + ", ".join(unmeasured))
+    body += profile_limits_table(qual.limits)
     return f"""
 <section id="measurements">
   <h2>Measurements against limits</h2>
@@ -87,6 +92,48 @@ def measurements_section(qual: QualRecord, runs: list[RunData]) -> str:
   The identity of a measurement is its name plus its conditions.</p>
   {body}
 </section>"""
+
+
+PROFILE_LIMIT_HEADERS = ("name", "limit", "against the catalogue's default", "reason")
+
+
+def profile_limits_table(limits: dict[str, Any]) -> str:
+    """The profile's own limits, each against the catalogue's default: the same, tightened,
+    loosened (with the profile's reason), or set where the catalogue judges nothing. Every
+    measurement the profile names no limit for is judged by the default (the catalogue page,
+    ``hil limits``)."""
+    rows = []
+    loosened = 0
+    for name, entry in sorted(limits.items()):
+        if not isinstance(entry, dict) or name not in MEASUREMENTS:
+            continue
+        try:
+            stated = RecordedLimit.parse(entry)
+        except ConfigError:
+            continue
+        spec = MEASUREMENTS[name]
+        origin = str(entry.get("origin") or origin_of(name, stated))
+        default = limit_text(spec.low, spec.high, spec.cases, otherwise="none") \
+            if not spec.default_rule else spec.default_rule
+        against = {"default": "the default", "set": "set (the catalogue has none)"}.get(
+            origin, f"{origin} (default {default})")
+        source = spec.source or spec.information
+        reason = stated.reason or ("(not recorded: see the profile)" if origin == "loosened"
+                                   else "")
+        loosened += origin == "loosened"
+        rows.append(row([f"<code>{esc(name)}</code>",
+                         esc(limit_text(stated.low, stated.high, stated.cases,
+                                        otherwise="the default") + f" {spec.unit}"),
+                         esc(against) + (f'<div class="small">from {esc(source)}</div>'
+                                         if source else ""),
+                         esc(reason) or DASH], f"limit-{origin}"))
+    if not rows:
+        return note("the profile sets no limit of its own: every measurement is judged by "
+                    "the catalogue's default")
+    return (f'<h3>The profile\'s own limits</h3><p class="small">{len(rows)} of the profile; '
+            f"{loosened} looser than the catalogue's default (each with its reason). Every "
+            "other measurement is judged by the catalogue's default.</p>"
+            + table(PROFILE_LIMIT_HEADERS, rows, "profile-limits"))
 
 
 def _timing_cell(run: RunData) -> str:

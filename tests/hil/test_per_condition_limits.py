@@ -114,7 +114,8 @@ def test_profile_case_then_profile_band_then_catalogue() -> None:
     assert (hit.high, hit.marginal, hit.source) == (2.0, 0.1, "profile (to_mm=20)")
     miss = applied_limit(TRUE_DEPTH, {**at, "to_mm": 40.0}, only)
     assert (miss.high, miss.source) == (MEASUREMENTS[TRUE_DEPTH].high, "catalogue")
-    assert applied_limit("flow.step.overshoot", {"target_gps": 23}).source == "none"
+    # information only by nature: no default, so no limit
+    assert applied_limit("depth.field.cv", {"speed_band_kmh": "3-5"}).source == "none"
 
 
 def test_catalogue_cases_apply_when_the_profile_sets_none(monkeypatch) -> None:
@@ -282,12 +283,16 @@ def test_the_catalogue_page_prints_cases_and_conditions(tmp_path: Path) -> None:
 
     sys.path.insert(0, str(REPO / "docs" / "_ext"))
     try:
-        from agrihil_docs import _definition, _limit_text
+        from agrihil_docs import _definition
     finally:
         sys.path.remove(str(REPO / "docs" / "_ext"))
+    from hil.limits import limit_text
+
+    # the words the catalogue page, hil limits and hil profile check give a limit's cases
     limit = Limit(high=3.0, marginal=0.2, when=({"to_mm": [20, 30], "high": 2.0},))
-    assert _limit_text(limit) == "to_mm=20|30: <= 2; otherwise <= 3 (marginal band 0.2)"
-    assert _limit_text(Limit(when=({"to_mm": 20, "low": 1.0},))) == \
+    assert limit_text(limit.low, limit.high, limit.cases) == "to_mm=20|30: <= 2; otherwise <= 3"
+    only = Limit(when=({"to_mm": 20, "low": 1.0},))
+    assert limit_text(only.low, only.high, only.cases, otherwise="the default") == \
         "to_mm=20: >= 1; otherwise the default"
     assert _definition(MEASUREMENTS[TRUE_DEPTH]).endswith("(conditions: from_mm, to_mm)")
     assert _definition(MEASUREMENTS["depth.fault.speed_loss.rod_travel"]).endswith(
