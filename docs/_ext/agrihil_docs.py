@@ -8,6 +8,9 @@
     the conditions each measurement carries. ``hil limits`` prints the same table.
 ``pytest-plugin-options``
     The ``--hil-*`` options of the pytest plugin, read from its ``pytest_addoption``.
+``profile-schema``
+    Every table and key of a DUT profile with its type, default, valid range and meaning, read
+    from the profile loader's dataclasses and their docstrings (``hil.dut.schema``).
 """
 
 from __future__ import annotations
@@ -72,6 +75,17 @@ class MeasurementCatalogue(_Generated):
                                   "from (or why information only)"], rows))
 
 
+class ProfileSchema(_Generated):
+    """Every table and key of a DUT profile, read from the loader's dataclasses."""
+
+    def run(self) -> list[nodes.Node]:
+        from hil.dut import profile
+        from hil.dut.schema import markdown
+
+        self.env.note_dependency(profile.__file__)
+        return self._emit(markdown())
+
+
 class PytestPluginOptions(_Generated):
     """The command-line options the agrihil pytest plugin adds."""
 
@@ -101,4 +115,5 @@ class PytestPluginOptions(_Generated):
 def setup(app: Sphinx) -> dict[str, Any]:
     app.add_directive("measurement-catalogue", MeasurementCatalogue)
     app.add_directive("pytest-plugin-options", PytestPluginOptions)
+    app.add_directive("profile-schema", ProfileSchema)
     return {"parallel_read_safe": True, "parallel_write_safe": True}

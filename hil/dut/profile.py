@@ -309,6 +309,18 @@ class CampaignRequirement:
     between a build at ``pass_probability`` (passed by mistake at most ``1 - confidence`` of
     the time) and a good one at ``sequential_good_probability`` (failed by mistake at most
     ``sequential_alpha`` of the time); both keys are needed only for ``--sequential``.
+
+    Parameters
+    ----------
+    pass_probability : float
+        The pass probability the campaign must demonstrate.
+    confidence : float, optional
+        The confidence of the exact one-sided bound.
+    sequential_good_probability : float, optional
+        ``--sequential``: the pass probability of a good build, above ``pass_probability``.
+    sequential_alpha : float, optional
+        ``--sequential``: how often a good build may be failed by mistake, below
+        ``confidence``.
     """
 
     pass_probability: float
