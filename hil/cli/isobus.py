@@ -21,7 +21,8 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
         "serve", help="run the tractor ECU and the Task Controller in real time on a bus, "
                       "driving a field path over a prescription map")
     serve.add_argument("--bus", required=True,
-                       help="bus spec, e.g. socketcan:can0, socketcand:127.0.0.1:29536:can0")
+                       help="bus spec, e.g. socketcan:can0, socketcand:127.0.0.1:29536/can0 (the "
+                            "software bus of `hil bus serve`), virtual:bench")
     serve.add_argument("--path", "--field", dest="field", type=Path, required=True,
                        metavar="FILE",
                        help="field file: GeoJSON with the field boundary, the work area and the "

@@ -250,6 +250,22 @@ def serve(tractor: Tractor, bus_spec: str, out: Path, *, duration_s: float = mat
         The bus cannot be opened or fails, or ``out`` cannot be written (what was recorded
         until then is on disk, and ``summary.json`` says why it ended).
     """
+    with _hangup_ends_the_serve():
+        return _serve(tractor, bus_spec, out, duration_s=duration_s, console=console,
+                      clock=clock)
+
+
+def _serve(tractor: Tractor, bus_spec: str, out: Path, *, duration_s: float,
+           console: Callable[[str], None] | None, clock: Callable[[], float]) -> ServeResult:
+    tc = tractor.tc
+    tc.keep_records = False
+    checker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="tc-ddop-check")
+    tc.checker = checker
+    ending: dict[str, Any] = {"status": "finished"}
+    interrupted = False
+    now = 0.0
+    logged: LoggedDevice | None = None
+    tc_log: _TcLog | None = None
     bus = open_bus(bus_spec)
     try:
         try:
@@ -263,49 +279,41 @@ def serve(tractor: Tractor, bus_spec: str, out: Path, *, duration_s: float = mat
     except BaseException:
         bus.shutdown()
         raise
-    if console is not None:
-        console(f"live files (tail -f them): {staging.path}/tc.jsonl, bus.log; moved into "
-                f"{out}/ at the end")
-    tc = tractor.tc
-    tc.keep_records = False
-    checker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="tc-ddop-check")
-    tc.checker = checker
     refused = _Refused(staging.path)
-    ending: dict[str, Any] = {"status": "finished"}
-    interrupted = False
-    now = 0.0
-    logged: LoggedDevice | None = None
-    tc_log: _TcLog | None = None
     try:
-        with _hangup_ends_the_serve():
-            with refused.noting("bus.log"):
-                writer = can.Logger(str(staging.path / "bus.log"))
-            if refused.error is None:
-                logged = LoggedDevice(tractor.network, writer, epoch_s=time.time())
-                try:
-                    with refused.noting("tc.jsonl"), \
-                            _opened(staging.path / "tc.jsonl") as tc_file:
-                        tc_log = _TcLog(tc_file, console)
-                        tc.recorder = tc_log.record
-                        try:
-                            while now < duration_s and refused.error is None:
-                                with refused.noting("bus.log"):
-                                    now = drive(logged, bus, min(SLICE_S, duration_s - now),
-                                                clock=clock, start_s=now)
-                                with refused.noting("tc.jsonl"):
-                                    tc_log.flush()
-                        except KeyboardInterrupt as exc:
-                            interrupted = True
-                            ending = {"status": "interrupted", "signal": _signal_name(exc)}
-                        except can.CanError as exc:
-                            raise BusError(f"{bus_spec}: {exc}") from exc
-                        finally:
-                            tc.recorder = None
+        # from here on, whatever ends the serve (a signal as soon as the line is out) writes
+        # its summary
+        if console is not None:
+            console(f"live files (tail -f them): {staging.path}/tc.jsonl, bus.log; moved into "
+                    f"{out}/ at the end")
+        with refused.noting("bus.log"):
+            writer = can.Logger(str(staging.path / "bus.log"))
+        if refused.error is None:
+            logged = LoggedDevice(tractor.network, writer, epoch_s=time.time())
+            try:
+                with refused.noting("tc.jsonl"), \
+                        _opened(staging.path / "tc.jsonl") as tc_file:
+                    tc_log = _TcLog(tc_file, console)
+                    tc.recorder = tc_log.record
+                    try:
+                        while now < duration_s and refused.error is None:
+                            with refused.noting("bus.log"):
+                                now = drive(logged, bus, min(SLICE_S, duration_s - now),
+                                            clock=clock, start_s=now)
                             with refused.noting("tc.jsonl"):
                                 tc_log.flush()
-                finally:
-                    with refused.noting("bus.log"):
-                        writer.stop()
+                    except KeyboardInterrupt as exc:
+                        interrupted = True
+                        ending = {"status": "interrupted", "signal": _signal_name(exc)}
+                    except can.CanError as exc:
+                        raise BusError(f"{bus_spec}: {exc}") from exc
+                    finally:
+                        tc.recorder = None
+                        with refused.noting("tc.jsonl"):
+                            tc_log.flush()
+            finally:
+                with refused.noting("bus.log"):
+                    writer.stop()
     except BaseException as exc:
         # a bus error, a bug, a second signal: what was recorded moves into out all the same,
         # with a summary that says how the serve ended

@@ -475,9 +475,14 @@ class TaskControllerServer:
         key, name = self._key(msg.source)
         if name is None:
             # ISO 11783-5: a control function claims its address before anything else; a
-            # session belongs to a NAME, and this address has none
-            self._reject(msg.time_s, msg.source, "working-set master from an address that "
-                         "never claimed: no session", nack=False)
+            # session belongs to a NAME, and this address has none the TC heard (it may have
+            # claimed before the TC was on the bus): ask it for its claim (at the limiter's
+            # rate), and let it connect again
+            if self._unsolicited.offer(msg.source, msg.time_s):
+                self._event(msg.time_s, msg.source, EventKind.REJECTED_MESSAGE,
+                            "working-set master from an address whose claim the TC has not "
+                            "heard: no session; its claim is requested")
+                self._request_claims(msg.source)
             return
         self.sessions[msg.source] = ClientSession(msg.source, key, name, msg.time_s, msg.time_s)
         self._event(msg.time_s, msg.source, EventKind.CONNECTED, f"NAME {name:016X}")
@@ -518,9 +523,16 @@ class TaskControllerServer:
                         f"11783-5); " + ("it claims another" if address is None
                                          else f"it holds 0x{address:02X}"))
             self._next_status_s = None      # its status goes out at once from the new one
+        self._held = address
         if address is not None:
             self._event(now_s, None, EventKind.ADDRESS_CLAIMED, f"the TC holds 0x{address:02X}")
-        self._held = address
+            # clients that claimed before the TC was on the bus: their claims, so that their
+            # sessions have a NAME (ISO 11783-5 lets any control function ask)
+            self._request_claims(GLOBAL_ADDRESS)
+
+    def _request_claims(self, destination: int) -> None:
+        self.port.send(REQUEST_PGN, ADDRESS_CLAIMED_PGN.to_bytes(3, "little"), destination,
+                       PRIORITY_DEFAULT + 1)
 
     def _on_request(self, msg: Received) -> None:
         if self._down(msg.time_s) or len(msg.data) < 3 or self.language_command is None:

@@ -142,8 +142,32 @@ def test_status_every_two_seconds_from_the_first_tick() -> None:
     server = _server(port)
     sent = _run(server, port, 0.0, 10.0, client_task=False)
     assert _statuses(sent) == [0.0, 2.0, 4.0, 6.0, 8.0, 10.0]
-    assert sent[0][2] == bytes([0xFE, 0xFF, 0xFF, 0xFF, 0x00, 0x00, 0x00, 0xFF])
+    # its first message asks everyone's claim (clients on the bus before the TC); then status
+    assert sent[0][1:] == (0xEA00, b"\x00\xee\x00", GLOBAL_ADDRESS)
+    assert sent[1][2] == bytes([0xFE, 0xFF, 0xFF, 0xFF, 0x00, 0x00, 0x00, 0xFF])
     assert port.sent == []
+
+
+def test_a_session_needs_a_claimed_name_whose_claim_the_tc_then_asks() -> None:
+    port = FakePort()
+    server = _server(port)
+    server.tick(0.0)
+    port.take()
+    wsm = pd.encode_working_set_master(pd.WorkingSetMaster(1))
+
+    def working_set_master(t: float) -> list[tuple[int, bytes, int]]:
+        port.deliver(pd.WORKING_SET_MASTER_PGN, wsm, t, 0x90, GLOBAL_ADDRESS)
+        return [(pgn, data, dest) for pgn, data, dest, _ in port.take()]
+
+    # 0x90 never claimed, as far as the TC heard: no session; its claim is asked, at most
+    # once a second
+    assert working_set_master(0.1) == [(0xEA00, b"\x00\xee\x00", 0x90)]
+    assert server.sessions == {} and server.events[-1].kind == EventKind.REJECTED_MESSAGE
+    assert working_set_master(0.2) == []
+    assert working_set_master(1.2) == [(0xEA00, b"\x00\xee\x00", 0x90)]
+    port.names[0x90] = 0xA000_8000_0000_0090      # its claim arrives
+    assert working_set_master(1.3) == []
+    assert server.sessions[0x90].name == 0xA000_8000_0000_0090
 
 
 def test_nothing_is_sent_before_the_address_is_claimed() -> None:
@@ -562,7 +586,7 @@ def test_a_changed_status_waits_200_ms_after_the_last_one() -> None:
     port = FakePort()
     server = _server(port)
     server.tick(0.0)
-    assert len(port.take()) == 1
+    assert [pgn for pgn, *_ in port.take()] == [0xEA00, pd.PROCESS_DATA_PGN]  # claims, status
     server.set_task_active(True)
     sent = _run(server, port, 0.1, 0.3, client_task=False)
     assert _statuses(sent) == [0.2]
@@ -620,8 +644,8 @@ def test_any_sequence_of_messages_never_crashes_the_server(
     for i, (pgn, data, source) in enumerate(messages):
         port.deliver(pgn, data, i * 0.1, source)
         server.tick(i * 0.1)
-        for _, payload, _, _ in port.take():
-            assert len(payload) >= 8
+        for pgn, payload, _, _ in port.take():
+            assert len(payload) >= 8 or (pgn, len(payload)) == (0xEA00, 3)
     server.tick(100.0)
     assert server.sessions == {}
 
