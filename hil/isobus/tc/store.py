@@ -3,6 +3,10 @@
 A client that finds its pool already known (same structure and localization labels) skips the
 transfer and activates the stored one. The store outlives a server restart: pass the same
 :class:`PoolStore` to the new server.
+
+It is bounded, as a TC's non-volatile memory is: at most :data:`MAX_CLIENTS` clients (the one
+stored longest ago makes room) and :data:`MAX_POOLS_PER_CLIENT` pools each, so peers that claim
+NAME after NAME and activate pools cannot grow it without end.
 """
 
 from __future__ import annotations
@@ -10,6 +14,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from hil.isobus.ddop import ObjectPool
+
+MAX_CLIENTS = 64
+"""Clients whose pools the store keeps."""
+MAX_POOLS_PER_CLIENT = 8
+"""Pools (structure labels) kept per client; the oldest goes first."""
 
 ClientKey = int | tuple[str, int]
 """A client's NAME, or ``("address", sa)`` when the network layer does not know the NAME."""
@@ -71,7 +80,11 @@ class PoolStore:
                  if (p.structure_label, p.extended_structure_label)
                  != (pool.device.structure_label, pool.device.extended_structure_label)]
         pools.append(StoredPool(pool, bytes(raw)))
+        del pools[:-MAX_POOLS_PER_CLIENT]
+        self._pools.pop(client, None)           # the newest client last
         self._pools[client] = pools
+        while len(self._pools) > MAX_CLIENTS:
+            del self._pools[next(iter(self._pools))]
 
     def delete(self, client: ClientKey) -> bool:
         """Forget every pool of ``client``; whether there was one."""

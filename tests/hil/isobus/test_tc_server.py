@@ -695,3 +695,19 @@ def test_late_ticks_do_not_stretch_the_status_period() -> None:
         server.tick(t)
         sent += [t for _, data, _, _ in port.take() if data[0] == 0xFE]
     assert sent == [0.0, 2.013, 4.013, 6.005, 8.0, 10.0]
+
+
+def test_the_pool_store_is_bounded_as_a_tcs_memory_is() -> None:
+    from hil.isobus.tc.store import MAX_CLIENTS, MAX_POOLS_PER_CLIENT
+
+    store = PoolStore()
+    pool = section_control_pool(sections=1)
+    for name in range(MAX_CLIENTS + 10):            # peers claiming NAME after NAME
+        store.put(name, pool, pool.to_bytes())
+    assert len(store.clients()) == MAX_CLIENTS and store.clients()[0] == 10
+    for k in range(MAX_POOLS_PER_CLIENT + 3):       # one client, label after label
+        labelled = section_control_pool(sections=1, structure_label=f"L{k}".encode())
+        store.put(5, labelled, labelled.to_bytes())
+    assert store.by_structure(5, b"L0     ") is None
+    assert store.latest(5).structure_label == f"L{MAX_POOLS_PER_CLIENT + 2}".encode().ljust(7)
+    assert len(store._pools[5]) == MAX_POOLS_PER_CLIENT
