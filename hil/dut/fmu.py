@@ -21,10 +21,10 @@ DUT is.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any
 
+from hil.dut.fmu_section import FmuSection
 from hil.dut.inprocess import Controller, InProcessDut
 from hil.errors import ConfigError
 
@@ -33,43 +33,6 @@ if TYPE_CHECKING:
     from hil.fmi.fmufile import FmuFile
 
 __all__ = ["FmuDut", "FmuSection", "check_fmu", "fmu_path", "fmu_problems", "make_fmu_dut"]
-
-Level = Literal["bus", "signal"]
-
-
-@dataclass(frozen=True)
-class FmuSection:
-    """The profile's ``[fmu]`` table (kind ``fmu`` only).
-
-    Parameters
-    ----------
-    path : str
-        The FMU: absolute, relative to the project root or the profile, or in the build cache
-        (``{build_dir}``, with a ``[build]`` section that makes it).
-    level : {"bus", "signal"}
-        ``bus``: an FMI 3.0 FMU with an FMI-LS-BUS CAN terminal; ``signal``: an FMI 2.0 or 3.0
-        FMU whose variables the profile binds to rig quantities.
-    terminal : str, optional
-        The CAN terminal wired to the rig's bus (default: the FMU's only CAN terminal).
-    bus_notifications : bool, optional
-        ``Can_BusNotifications`` for an FMU that declares it.
-    variables : dict of str to str, optional
-        Signal level: FMU variable name → rig quantity (``quantity`` or ``quantity[row]``).
-    """
-
-    path: str
-    level: Level
-    terminal: str = ""
-    bus_notifications: bool = True
-    variables: dict[str, str] = field(default_factory=dict)
-
-    def __post_init__(self) -> None:
-        if not self.path:
-            raise ValueError("path must name the FMU")
-        if self.level == "bus" and self.variables:
-            raise ValueError("variables bind a signal-level FMU; a bus-level FMU speaks "
-                             "frames (remove [fmu.variables] or set level = \"signal\")")
-
 
 def fmu_path(profile: DutProfile, build: Path | None = None) -> Path:
     """Where ``[fmu] path`` points (``build``: the build cache entry for ``{build_dir}``)."""
@@ -130,7 +93,7 @@ def _bus_problems(profile: DutProfile, fmu: FmuFile) -> list[Problem]:
 def signal_bindings(profile: DutProfile, fmu: FmuFile, contract: Any,
                     problems: list[Problem] | None = None) -> tuple[list[Any], list[Any]]:
     """The profile's ``[fmu.variables]`` as input and output bindings (problems appended)."""
-    from hil.contract.units import factor
+    from hil.contract.units import dimension, factor
     from hil.fmi.signal_node import SignalBinding, parse_quantity, variable_unit
 
     section = profile.fmu
@@ -160,8 +123,9 @@ def signal_bindings(profile: DutProfile, fmu: FmuFile, contract: Any,
                              f"quantity {side}", ""))
             continue
         unit = variable_unit(var)
-        if quantity.kind in ("flag", "enum", "counter") and not unit:
-            f = 1.0
+        if not unit and (quantity.kind in ("flag", "enum", "counter")
+                         or dimension(quantity.unit) in ("count", "dimensionless")):
+            f = 1.0   # a count (rows, pulses) in an integer, which FMI 2.0 gives no unit
         else:
             if not unit and quantity.unit:
                 bad.append((key, f"{name} declares no unit and {quantity.name} is in "

@@ -62,12 +62,19 @@ class BusFmuController(Controller):
         self.parameters = dict(parameters or {})
         self.name = name
         self.inst: FmuInstance | None = None
+        self.env_parameters: dict[str, str] = {}
         self.bus = CanNodeBus(terminal.name, bus_notifications)
         self.syncs = 0
         self.bus_time = 0.0
         self.next_tx_tick: float | None = None
 
     # --- life cycle ----------------------------------------------------------------------
+    def configure(self, env: dict[str, str]) -> None:
+        """The rig's offers (a serial port): the FMU's string parameters of that name."""
+        from hil.fmi.parameters import environment_parameters
+
+        self.env_parameters = environment_parameters(self.fmu, env)
+
     def on_start(self) -> list[can.Message]:
         from hil.fmi.parameters import apply_parameters
 
@@ -76,7 +83,7 @@ class BusFmuController(Controller):
         self.inst = inst
         if self.fmu.bus_notifications_vr is not None:
             inst.set_boolean_vr(self.fmu.bus_notifications_vr, self.notifications)
-        apply_parameters(inst, self.fmu, self.parameters)
+        apply_parameters(inst, self.fmu, {**self.env_parameters, **self.parameters})
         inst.initialize(0.0)
         self.bus = CanNodeBus(self.terminal.name, self.notifications)
         self.bus.start()

@@ -7,7 +7,7 @@ from typing import Any
 from hil.fmi.fmufile import FmuFile
 from hil.fmi.instance import FmuCallError, FmuInstance
 
-__all__ = ["apply_parameters", "parameter_problems"]
+__all__ = ["apply_parameters", "environment_parameters", "parameter_problems"]
 
 PARAMETER_CAUSALITIES = ("parameter", "structuralParameter")
 
@@ -47,3 +47,15 @@ def apply_parameters(inst: FmuInstance, fmu: FmuFile, parameters: dict[str, Any]
             inst.call("setString", [var.valueReference], [value])
         else:
             inst.set(var, value)
+
+
+def environment_parameters(fmu: FmuFile, env: dict[str, str]) -> dict[str, str]:
+    """What the rig offers besides the bus (``AGRIHIL_GNSS_PORT``, say), for the FMU's string
+    parameters of the same name in lower case (``agrihil_gnss_port``)."""
+    out = {}
+    for key, value in env.items():
+        var = fmu.variable(key.lower())
+        if var is not None and var.type == "String" and \
+                var.causality in PARAMETER_CAUSALITIES:
+            out[var.name] = value
+    return out

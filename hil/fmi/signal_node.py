@@ -130,6 +130,7 @@ class SignalFmuController(Controller):
         self.parameters = dict(parameters or {})
         self.name = name
         self.inst: FmuInstance | None = None
+        self.env_parameters: dict[str, str] = {}
         self.latest: dict[str, Any] = {}
         self.steps = 0
         self.undecodable = 0
@@ -169,13 +170,19 @@ class SignalFmuController(Controller):
         return plan
 
     # --- life cycle ----------------------------------------------------------------------
+    def configure(self, env: dict[str, str]) -> None:
+        """The rig's offers (a serial port): the FMU's string parameters of that name."""
+        from hil.fmi.parameters import environment_parameters
+
+        self.env_parameters = environment_parameters(self.fmu, env)
+
     def on_start(self) -> list[can.Message]:
         from hil.fmi.parameters import apply_parameters
 
         self.close()
         inst = FmuInstance(self.fmu, self.name)
         self.inst = inst
-        apply_parameters(inst, self.fmu, self.parameters)
+        apply_parameters(inst, self.fmu, {**self.env_parameters, **self.parameters})
         inst.initialize(0.0)
         self.latest = {}
         self.steps = 0

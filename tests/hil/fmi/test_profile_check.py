@@ -1,4 +1,4 @@
-"""``kind = "fmu"`` profiles: what ``hil profile check`` (and every run) refuses, by name."""
+"""``kind = "fmu"`` profiles: what every run refuses (``hil.dut.fmu.check_fmu``), by name."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from hil.dut.fmu import fmu_problems
+from hil.dut.fmu import check_fmu, fmu_problems
 from hil.dut.profile import load_profile
 from hil.errors import ConfigError
 
@@ -66,7 +66,7 @@ def test_no_can_terminal_is_refused(fmus: Path, tmp_path: Path) -> None:
     fmu = rezip(fmus / "agrihil-lsbus-probe.fmu", tmp_path / "bare.fmu",
                 replace={"terminalsAndIcons/terminalsAndIcons.xml": None})
     with pytest.raises(ConfigError, match=r"\[fmu.path\] the FMU declares no CAN terminal"):
-        load_profile(profile_for(tmp_path, fmu))
+        check_fmu(load_profile(profile_for(tmp_path, fmu)))
 
 
 def test_more_terminals_than_the_profile_binds_are_refused_naming_them(
@@ -80,7 +80,7 @@ def test_more_terminals_than_the_profile_binds_are_refused_naming_them(
     profile = profile_for(tmp_path, fmu, fmu_table='terminal = "CanChannel"')
     with pytest.raises(ConfigError, match=r"\[fmu.terminal\] the FMU declares 2 terminals and "
                                           r"the profile binds one \(CanChannel\): SecondCan"):
-        load_profile(profile)
+        check_fmu(load_profile(profile))
 
 
 def test_a_terminal_the_fmu_lacks_and_an_unknown_parameter_are_each_named(
@@ -88,7 +88,7 @@ def test_a_terminal_the_fmu_lacks_and_an_unknown_parameter_are_each_named(
     path = profile_for(tmp_path, fmus / "agrihil-lsbus-probe.fmu",
                        fmu_table='terminal = "Can2"', parameters="gain = 2.0\n")
     with pytest.raises(ConfigError) as info:
-        load_profile(path)
+        check_fmu(load_profile(path))
     assert "no CAN terminal 'Can2' (its CAN terminals: CanChannel)" in str(info.value)
     assert "more problem" in str(info.value)
 
@@ -101,14 +101,15 @@ def test_fmpy_validation_problems_are_refused(fmus: Path, tmp_path: Path) -> Non
     assert broken != md
     fmu = rezip(src, tmp_path / "broken.fmu", replace={"modelDescription.xml": broken.encode()})
     with pytest.raises(ConfigError, match="fmpy's validation: ModelStructure/InitialUnknowns"):
-        load_profile(profile_for(tmp_path, fmu))
+        check_fmu(load_profile(profile_for(tmp_path, fmu)))
 
 
-def test_hil_profile_check_exits_2_naming_the_problem(fmus: Path, tmp_path: Path) -> None:
+def test_hil_run_exits_2_naming_the_problem(fmus: Path, tmp_path: Path) -> None:
     fmu = rezip(fmus / "agrihil-lsbus-probe.fmu", tmp_path / "bare.fmu",
                 replace={"terminalsAndIcons/terminalsAndIcons.xml": None})
-    done = subprocess.run([sys.executable, "-m", "hil", "profile", "check", "-q",
-                           str(profile_for(tmp_path, fmu))], capture_output=True, text=True,
-                          timeout=120, cwd=tmp_path)
+    done = subprocess.run([sys.executable, "-m", "hil", "run", "--dut",
+                           str(profile_for(tmp_path, fmu)), "--scenario", "bench-step-23",
+                           "--bus", "inline", "--out", str(tmp_path / "out")],
+                          capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert done.returncode == 2, done.stdout + done.stderr
     assert "no CAN terminal" in done.stderr and "Traceback" not in done.stderr
