@@ -39,12 +39,15 @@ from reference_controllers.fertilizer.operator_pool import (
     VERSION_LABEL,
     meter_vt_pool,
 )
-from reference_controllers.params import ParamValue
+from reference_controllers.params import ParamError, ParamValue
 
 ALARM_AFTER_S = 1.0
 """A row's flow lost this long while metering raises the alarm."""
 DISPLAY_PERIOD_S = 1.0
 """How often the Run mask's values are refreshed (changed ones only)."""
+DEFECTS = ("", "ignores-master", "no-alarm", "bad-pool", "no-reconnect", "meters-without-vt")
+"""Parameter ``vt_defect``: the must-fail implements made of the reference, each a defect a
+real implement could have (empty: the reference)."""
 
 
 class IsobusVtFlowController(IsobusFlowController):
@@ -52,10 +55,24 @@ class IsobusVtFlowController(IsobusFlowController):
 
     def __init__(self, law: str | None = None, params: Mapping[str, ParamValue] | None = None,
                  **kwargs: Any) -> None:
-        super().__init__(law, params, **kwargs)
-        self.name = f"{self.name}-vt"
+        merged = dict(params or {})
+        defect = str(merged.pop("vt_defect", ""))
+        if defect not in DEFECTS:
+            raise ParamError(f"vt_defect must be one of {', '.join(repr(d) for d in DEFECTS)}, "
+                             f"got {defect!r}")
+        #: the must-fail defect (empty: the reference)
+        self.defect = defect
+        super().__init__(law, merged, **kwargs)
+        self.name = f"{self.name}-vt" + (f"-{defect}" if defect else "")
         self.vt_pool = meter_vt_pool(self.row_count)
-        self.vt = VtClient(self.port, [self.vt_pool.to_bytes()], VERSION_LABEL)
+        pool_bytes = self.vt_pool.to_bytes()
+        if defect == "bad-pool":      # the rate's output number names a font the pool lacks
+            obj = self.vt_pool.get(IDS.rate_out)
+            assert obj is not None
+            raw = bytearray(pool_bytes)
+            raw[obj.offset + 8:obj.offset + 10] = (0x7777).to_bytes(2, "little")
+            pool_bytes = bytes(raw)
+        self.vt = VtClient(self.port, [pool_bytes], VERSION_LABEL)
         self.vt.on_key = self._on_key
         self.vt.on_number = self._on_number
         self.port.run(self.vt)
@@ -75,7 +92,7 @@ class IsobusVtFlowController(IsobusFlowController):
         if event.activation != KeyActivation.RELEASED:
             return
         if event.object_id == IDS.key_master:
-            self.master_on = not self.master_on
+            self.master_on = not self.master_on or self.defect == "ignores-master"
             self.vt.change_string_value(IDS.master_var, b"ON " if self.master_on else b"OFF")
         elif event.object_id == IDS.key_calibration:
             self.vt.change_active_mask(IDS.working_set, IDS.calibration)
@@ -98,12 +115,16 @@ class IsobusVtFlowController(IsobusFlowController):
 
     def metering(self) -> bool:
         """As the ISOBUS reference, and only with its pool active on a VT and Master on."""
+        if self.defect == "meters-without-vt":
+            return super().metering()
         return self.vt.state == "connected" and self.master_on and super().metering()
 
     # -- the step ------------------------------------------------------------------------------
 
     def step(self) -> list[can.Message]:
         """The ISOBUS reference's step, then the VT's: alarms, the Run mask's values."""
+        if self.defect == "no-reconnect" and self.vt.connected_s is not None:
+            self.vt.vt_status_s = None        # never notices the VT is gone
         out = super().step()
         if self.vt.state == "connected":
             self._watch_rows()
@@ -142,7 +163,8 @@ class IsobusVtFlowController(IsobusFlowController):
                 self._alarmed.discard(row)
                 continue
             since = self._lost_since.setdefault(row, now)
-            if now - since >= ALARM_AFTER_S - 1e-9 and row not in self._alarmed:
+            if now - since >= ALARM_AFTER_S - 1e-9 and row not in self._alarmed \
+                    and self.defect != "no-alarm":
                 self._alarmed.add(row)
                 self.alarm_row = row
                 text = f"Row {row}: flow lost".ljust(ALARM_TEXT_LENGTH).encode("latin-1")
