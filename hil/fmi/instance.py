@@ -56,6 +56,7 @@ class FmuInstance:
         self._tmp = tempfile.mkdtemp(prefix="agrihil-fmu-")
         self._slave: Any = None
         self.time = 0.0
+        self.event_mode = event_mode
         self.in_event_mode = False
         try:
             self._slave = self._instantiate(instance_name, event_mode)
@@ -105,12 +106,13 @@ class FmuInstance:
             raise FmuCallError(self._text(name, exc)) from exc
 
     def initialize(self, start_time: float = 0.0) -> None:
-        """Enter and exit initialisation mode (FMI 3.0 with event mode: ends in event mode)."""
+        """Enter and exit initialisation mode (FMI 3.0 with event mode: ends in event mode,
+        else in step mode)."""
         self.time = start_time
         if self.fmi3:
             self.call("enterInitializationMode", None, start_time)
             self.call("exitInitializationMode")
-            self.in_event_mode = True
+            self.in_event_mode = self.event_mode
         else:
             self.call("setupExperiment", None, start_time)
             self.call("enterInitializationMode")
