@@ -72,6 +72,9 @@ TC_NAME = IsobusName(identity_number=0x1EE, manufacturer_code=0, function=TC_FUN
                      device_class=0, industry_group=2, self_configurable=True)
 """The rig's TC NAME (identity number arbitrary, manufacturer code 0: no manufacturer),
 self-configurable: a TC that loses 0xF7 claims another address in 128-247 (ISO 11783-5)."""
+TRACTOR_LOG_FRAMES = 2_000
+"""Frames the tractor's network keeps in memory (its ``log``, for a look in a debugger): the
+serve writes every frame to ``bus.log``, a rig's recorder its own log."""
 MAX_SECTIONS = 256
 """Sections the condensed work states carry (16 DDIs of 16, ISO 11783-10)."""
 
@@ -217,7 +220,7 @@ class Tractor:
         options = options or default_server_options()
         # a transfer larger than the TC's memory (plus the command byte) is refused at its RTS
         self.network = IsobusNetwork(
-            faults=faults, name="tractor",
+            faults=faults, name="tractor", log_frames=TRACTOR_LOG_FRAMES,
             timing=TransportTiming(max_receive_bytes=max(options.memory_bytes + 1, 1 << 16)))
         self.tecu: TractorEcu = add_tecu(self.network, self.truth)
         tc_cf = self.network.add(TC_NAME, TC_ADDRESS, "TC")
