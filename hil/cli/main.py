@@ -26,7 +26,7 @@ EXIT_SETUP = 2
 #: Subcommand modules, imported in order; each provides ``add_subparser(subparsers)``.
 SUBCOMMANDS = ("hil.cli.bus", "hil.cli.run", "hil.cli.profile", "hil.cli.qualify",
                "hil.cli.gate", "hil.cli.report", "hil.cli.campaign", "hil.cli.isobus",
-               "hil.cli.rig", "hil.cli.limits")
+               "hil.cli.rig", "hil.cli.limits", "hil.cli.fmu")
 
 
 class Terminated(KeyboardInterrupt):
