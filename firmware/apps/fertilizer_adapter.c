@@ -17,6 +17,7 @@ void fert_config_defaults(fert_config_t *cfg, ppid_law_t law)
     cfg->stale_after_s = 2.5;
     cfg->period_s = 0.1;
     cfg->ground_speed_first_s = 0.3;
+    cfg->use_calibration = 1.0;
 }
 
 size_t fert_common_param_refs(fert_config_t *cfg, param_ref_t refs[FERT_COMMON_PARAM_COUNT])
@@ -31,6 +32,7 @@ size_t fert_param_refs(fert_config_t *cfg, param_ref_t refs[FERT_PARAM_COUNT])
 {
     size_t n = fert_common_param_refs(cfg, refs);
     refs[n++] = (param_ref_t){"ground_speed_first_s", &cfg->ground_speed_first_s};
+    refs[n++] = (param_ref_t){"use_calibration", &cfg->use_calibration};
     return n;
 }
 
@@ -95,6 +97,36 @@ static bool ground_fresh(const fert_adapter_t *a, double now_s)
            now_s - a->ground_at_s <= a->cfg.ground_speed_first_s + STALE_SLACK_S;
 }
 
+#define FF_COEFF_MAX 100.0 /* the core's own bound on ff_coeff: above it no fluted roller */
+
+double fert_ff_coeff_from_test(double grams_per_rev, double shaft_rpm, double ff_exponent,
+                               double ff_linear_below_rpm)
+{
+    if (!(grams_per_rev > 0.0 && shaft_rpm > 0.0)) {
+        return 0.0;
+    }
+    double n_ref = shaft_rpm > ff_linear_below_rpm ? shaft_rpm : ff_linear_below_rpm;
+    double coeff = grams_per_rev / 60.0 * pow(n_ref, 1.0 - ff_exponent);
+    return coeff > 0.0 && coeff <= FF_COEFF_MAX ? coeff : 0.0;
+}
+
+static void on_calibration(fert_adapter_t *a, const hal_can_frame_t *f)
+{
+    struct fertilizer_meter_calibration_t m;
+    if (a->cfg.use_calibration == 0.0 ||
+        fertilizer_meter_calibration_unpack(&m, f->data, f->len) < 0) {
+        return;
+    }
+    ppid_params_t *p = &a->cfg.core;
+    double coeff = fert_ff_coeff_from_test(
+        fertilizer_meter_calibration_grams_per_rev_decode(m.grams_per_rev),
+        fertilizer_meter_calibration_test_shaft_speed_decode(m.test_shaft_speed), p->ff_exponent,
+        p->ff_linear_below_rpm);
+    if (coeff > 0.0) {
+        p->ff_coeff = coeff;
+    }
+}
+
 void fert_on_frame(fert_adapter_t *a, const hal_can_frame_t *f, double now_s)
 {
     if (f->extended) {
@@ -137,6 +169,9 @@ void fert_on_frame(fert_adapter_t *a, const hal_can_frame_t *f, double now_s)
     case FERTILIZER_FLOW_MODULE3_FRAME_ID:
     case FERTILIZER_FLOW_MODULE4_FRAME_ID:
         on_flow(a, (int)(f->id - FERTILIZER_FLOW_MODULE1_FRAME_ID), f, now_s);
+        break;
+    case FERTILIZER_METER_CALIBRATION_FRAME_ID:
+        on_calibration(a, f);
         break;
     case FERTILIZER_GROUND_WHEEL_SPEED_FRAME_ID: {
         struct fertilizer_ground_wheel_speed_t m;

@@ -15,7 +15,10 @@
  * Ground speeds are held until the next frame (no time-out); a J1939 "not available" speed counts as 0.
  * In field mode a valid ground-based speed (PGN 65097) heard within ground_speed_first_s is used
  * whatever SpeedSource names: the wheels read through slip and skid, a radar does not
- * (reference_controllers/fertilizer/speeds.py; 0 obeys SpeedSource alone). */
+ * (reference_controllers/fertilizer/speeds.py; 0 obeys SpeedSource alone).
+ * MeterCalibration 0x310 (optional): the operator's calibration test of the lot replaces the
+ * feedforward map's ff_coeff, g_rev / 60 * max(n, ff_linear_below_rpm)^(1 - ff_exponent), as
+ * reference_controllers/fertilizer/calibration.py computes it (use_calibration = 0 ignores it). */
 #ifndef AGRIHIL_FERTILIZER_ADAPTER_H
 #define AGRIHIL_FERTILIZER_ADAPTER_H
 
@@ -30,7 +33,7 @@
 #define FERT_ROWS 4
 #define FERT_MAX_OUT 4 /* frames a step can produce */
 #define FERT_COMMON_PARAM_COUNT (PPID_PARAM_COUNT + 2)
-#define FERT_PARAM_COUNT (FERT_COMMON_PARAM_COUNT + 1)
+#define FERT_PARAM_COUNT (FERT_COMMON_PARAM_COUNT + 2)
 
 typedef struct {
     ppid_params_t core;   /* law and gains */
@@ -39,6 +42,7 @@ typedef struct {
                            * step in lockstep */
     double ground_speed_first_s; /* field mode: a PGN 65097 speed this fresh is used before
                                   * SpeedSource's (0.3 s; 0: SpeedSource alone) */
+    double use_calibration;      /* 1: MeterCalibration replaces core.ff_coeff; 0: ignored */
 } fert_config_t;
 
 typedef struct {
@@ -97,11 +101,17 @@ void fert_config_defaults(fert_config_t *cfg, ppid_law_t law);
 
 /* Named parameters, the Python build's names: the core's (see ppid_param_refs, which depend on
  * the law) plus stale_after_s and period_s (what the ISOBUS implement shares), and
- * ground_speed_first_s (the terminal mode's alone). Set the law before calling. */
+ * ground_speed_first_s and use_calibration (the terminal mode's alone). Set the law before
+ * calling. */
 size_t fert_common_param_refs(fert_config_t *cfg, param_ref_t refs[FERT_COMMON_PARAM_COUNT]);
 size_t fert_param_refs(fert_config_t *cfg, param_ref_t refs[FERT_PARAM_COUNT]);
 
 void fert_init(fert_adapter_t *a, const fert_config_t *cfg);
+
+/* The feedforward map's coefficient from a calibration test (grams per revolution and row at
+ * shaft_rpm), or 0 when it holds no usable test (calibration.py ff_coeff_from_test). */
+double fert_ff_coeff_from_test(double grams_per_rev, double shaft_rpm, double ff_exponent,
+                               double ff_linear_below_rpm);
 
 /* The boot-up frame (heartbeat with state 0x00), sent once at start. */
 hal_can_frame_t fert_bootup(void);

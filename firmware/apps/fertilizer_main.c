@@ -79,6 +79,10 @@ int main(int argc, char **argv)
     if (rc != 0) {
         return rc;
     }
+    if (cfg.use_calibration != 0.0 && cfg.use_calibration != 1.0) {
+        app_error(&INFO, "use_calibration must be 0 or 1, got %g", cfg.use_calibration);
+        return APP_EXIT_USAGE;
+    }
     fert_init(&adapter, &cfg);
     fprintf(stderr, "%s: law %s\n", INFO.name, ppid_law_name(law));
     app_hooks_t hooks = {&adapter, on_frame, step, NULL, fert_bootup()};

@@ -1718,6 +1718,119 @@ bool fertilizer_fert_setpoint_counter_is_in_phys_range(double value)
     return ((value >= 0.0) && (value <= 255.0));
 }
 
+int fertilizer_meter_calibration_pack(
+    uint8_t *dst_p,
+    const struct fertilizer_meter_calibration_t *src_p,
+    size_t size)
+{
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    memset(&dst_p[0], 0, 8);
+
+    dst_p[0] |= pack_left_shift_u16(src_p->grams_per_rev, 0u, 0xffu);
+    dst_p[1] |= pack_right_shift_u16(src_p->grams_per_rev, 8u, 0xffu);
+    dst_p[2] |= pack_left_shift_u16(src_p->test_shaft_speed, 0u, 0xffu);
+    dst_p[3] |= pack_right_shift_u16(src_p->test_shaft_speed, 8u, 0xffu);
+    dst_p[4] |= pack_left_shift_u16(src_p->revolutions, 0u, 0xffu);
+    dst_p[5] |= pack_right_shift_u16(src_p->revolutions, 8u, 0xffu);
+
+    return (8);
+}
+
+int fertilizer_meter_calibration_unpack(
+    struct fertilizer_meter_calibration_t *dst_p,
+    const uint8_t *src_p,
+    size_t size)
+{
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    dst_p->grams_per_rev = unpack_right_shift_u16(src_p[0], 0u, 0xffu);
+    dst_p->grams_per_rev |= unpack_left_shift_u16(src_p[1], 8u, 0xffu);
+    dst_p->test_shaft_speed = unpack_right_shift_u16(src_p[2], 0u, 0xffu);
+    dst_p->test_shaft_speed |= unpack_left_shift_u16(src_p[3], 8u, 0xffu);
+    dst_p->revolutions = unpack_right_shift_u16(src_p[4], 0u, 0xffu);
+    dst_p->revolutions |= unpack_left_shift_u16(src_p[5], 8u, 0xffu);
+
+    return (0);
+}
+
+int fertilizer_meter_calibration_init(struct fertilizer_meter_calibration_t *msg_p)
+{
+    if (msg_p == NULL) return -1;
+
+    memset(msg_p, 0, sizeof(struct fertilizer_meter_calibration_t));
+
+    return 0;
+}
+
+uint16_t fertilizer_meter_calibration_grams_per_rev_encode(double value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(round(value / 0.01)));
+}
+
+double fertilizer_meter_calibration_grams_per_rev_decode(uint16_t value)
+{
+    return ((double)value * 0.01);
+}
+
+bool fertilizer_meter_calibration_grams_per_rev_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool fertilizer_meter_calibration_grams_per_rev_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 655.35));
+}
+
+uint16_t fertilizer_meter_calibration_test_shaft_speed_encode(double value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(round(value / 0.01)));
+}
+
+double fertilizer_meter_calibration_test_shaft_speed_decode(uint16_t value)
+{
+    return ((double)value * 0.01);
+}
+
+bool fertilizer_meter_calibration_test_shaft_speed_is_in_range(uint16_t value)
+{
+    return (value <= 10000u);
+}
+
+bool fertilizer_meter_calibration_test_shaft_speed_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 100.0));
+}
+
+uint16_t fertilizer_meter_calibration_revolutions_encode(double value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(round(value)));
+}
+
+double fertilizer_meter_calibration_revolutions_decode(uint16_t value)
+{
+    return ((double)value);
+}
+
+bool fertilizer_meter_calibration_revolutions_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool fertilizer_meter_calibration_revolutions_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 65535.0));
+}
+
 int fertilizer_analog_output_command_pack(
     uint8_t *dst_p,
     const struct fertilizer_analog_output_command_t *src_p,

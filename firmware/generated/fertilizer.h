@@ -54,6 +54,7 @@ extern "C" {
 #define FERTILIZER_GROUND_WHEEL_SPEED_FRAME_ID (0x185u)
 #define FERTILIZER_CONTROLLER_STATUS_FRAME_ID (0x190u)
 #define FERTILIZER_FERT_SETPOINT_FRAME_ID (0x210u)
+#define FERTILIZER_METER_CALIBRATION_FRAME_ID (0x310u)
 #define FERTILIZER_ANALOG_OUTPUT_COMMAND_FRAME_ID (0x220u)
 #define FERTILIZER_FLOW_MODULE1_HEARTBEAT_FRAME_ID (0x701u)
 #define FERTILIZER_FLOW_MODULE2_HEARTBEAT_FRAME_ID (0x702u)
@@ -75,6 +76,7 @@ extern "C" {
 #define FERTILIZER_GROUND_WHEEL_SPEED_LENGTH (8u)
 #define FERTILIZER_CONTROLLER_STATUS_LENGTH (8u)
 #define FERTILIZER_FERT_SETPOINT_LENGTH (8u)
+#define FERTILIZER_METER_CALIBRATION_LENGTH (8u)
 #define FERTILIZER_ANALOG_OUTPUT_COMMAND_LENGTH (4u)
 #define FERTILIZER_FLOW_MODULE1_HEARTBEAT_LENGTH (1u)
 #define FERTILIZER_FLOW_MODULE2_HEARTBEAT_LENGTH (1u)
@@ -96,6 +98,7 @@ extern "C" {
 #define FERTILIZER_GROUND_WHEEL_SPEED_IS_EXTENDED (0)
 #define FERTILIZER_CONTROLLER_STATUS_IS_EXTENDED (0)
 #define FERTILIZER_FERT_SETPOINT_IS_EXTENDED (0)
+#define FERTILIZER_METER_CALIBRATION_IS_EXTENDED (0)
 #define FERTILIZER_ANALOG_OUTPUT_COMMAND_IS_EXTENDED (0)
 #define FERTILIZER_FLOW_MODULE1_HEARTBEAT_IS_EXTENDED (0)
 #define FERTILIZER_FLOW_MODULE2_HEARTBEAT_IS_EXTENDED (0)
@@ -115,6 +118,7 @@ extern "C" {
 #define FERTILIZER_GROUND_WHEEL_SPEED_CYCLE_TIME_MS (50u)
 #define FERTILIZER_CONTROLLER_STATUS_CYCLE_TIME_MS (1000u)
 #define FERTILIZER_FERT_SETPOINT_CYCLE_TIME_MS (200u)
+#define FERTILIZER_METER_CALIBRATION_CYCLE_TIME_MS (1000u)
 #define FERTILIZER_ANALOG_OUTPUT_COMMAND_CYCLE_TIME_MS (100u)
 #define FERTILIZER_FLOW_MODULE1_HEARTBEAT_CYCLE_TIME_MS (1000u)
 #define FERTILIZER_FLOW_MODULE2_HEARTBEAT_CYCLE_TIME_MS (1000u)
@@ -223,6 +227,7 @@ extern "C" {
 #define FERTILIZER_GROUND_WHEEL_SPEED_NAME "GroundWheelSpeed"
 #define FERTILIZER_CONTROLLER_STATUS_NAME "ControllerStatus"
 #define FERTILIZER_FERT_SETPOINT_NAME "FertSetpoint"
+#define FERTILIZER_METER_CALIBRATION_NAME "MeterCalibration"
 #define FERTILIZER_ANALOG_OUTPUT_COMMAND_NAME "AnalogOutputCommand"
 #define FERTILIZER_FLOW_MODULE1_HEARTBEAT_NAME "FlowModule1Heartbeat"
 #define FERTILIZER_FLOW_MODULE2_HEARTBEAT_NAME "FlowModule2Heartbeat"
@@ -290,6 +295,9 @@ extern "C" {
 #define FERTILIZER_FERT_SETPOINT_SPEED_SOURCE_NAME "SpeedSource"
 #define FERTILIZER_FERT_SETPOINT_ACTIVE_ROWS_NAME "ActiveRows"
 #define FERTILIZER_FERT_SETPOINT_COUNTER_NAME "Counter"
+#define FERTILIZER_METER_CALIBRATION_GRAMS_PER_REV_NAME "GramsPerRev"
+#define FERTILIZER_METER_CALIBRATION_TEST_SHAFT_SPEED_NAME "TestShaftSpeed"
+#define FERTILIZER_METER_CALIBRATION_REVOLUTIONS_NAME "Revolutions"
 #define FERTILIZER_ANALOG_OUTPUT_COMMAND_CH1_OUTPUT_NAME "Ch1Output"
 #define FERTILIZER_ANALOG_OUTPUT_COMMAND_CH2_OUTPUT_NAME "Ch2Output"
 #define FERTILIZER_FLOW_MODULE1_HEARTBEAT_NMT_STATE_NAME "NmtState"
@@ -837,6 +845,42 @@ struct fertilizer_fert_setpoint_t {
      * Offset: 0
      */
     uint8_t counter;
+};
+
+/**
+ * Signals in message MeterCalibration.
+ *
+ * Optional: the operator's calibration (rotation) test of the fertilizer lot, RPDO2 of the DUT (0x300 + 0x10), as the terminal stores it: every 1000 ms from power-up once a test was made, absent when none was. The meter turned Revolutions times at TestShaftSpeed and one row delivered GramsPerRev per revolution (all rows weighed, divided by the rows). A controller that hears it fits its feedforward map to it; one that does not keeps its own calibration.
+ *
+ * All signal values are as on the CAN bus.
+ */
+struct fertilizer_meter_calibration_t {
+    /**
+     * Weighed mass per shaft revolution and row at TestShaftSpeed (0: no test).
+     *
+     * Range: 0..65535 (0..655.35 g/rev)
+     * Scale: 0.01
+     * Offset: 0
+     */
+    uint16_t grams_per_rev;
+
+    /**
+     * Meter shaft speed of the test.
+     *
+     * Range: 0..10000 (0..100 r/min)
+     * Scale: 0.01
+     * Offset: 0
+     */
+    uint16_t test_shaft_speed;
+
+    /**
+     * Shaft revolutions the test counted.
+     *
+     * Range: 0..65535 (0..65535 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint16_t revolutions;
 };
 
 /**
@@ -3614,6 +3658,163 @@ bool fertilizer_fert_setpoint_counter_is_in_range(uint8_t value);
  * @return true if in range, false otherwise.
  */
 bool fertilizer_fert_setpoint_counter_is_in_phys_range(double value);
+
+/**
+ * Pack message MeterCalibration.
+ *
+ * @param[out] dst_p Buffer to pack the message into.
+ * @param[in] src_p Data to pack.
+ * @param[in] size Size of dst_p.
+ *
+ * @return Size of packed data, or negative error code.
+ */
+int fertilizer_meter_calibration_pack(
+    uint8_t *dst_p,
+    const struct fertilizer_meter_calibration_t *src_p,
+    size_t size);
+
+/**
+ * Unpack message MeterCalibration.
+ *
+ * @param[out] dst_p Object to unpack the message into.
+ * @param[in] src_p Message to unpack.
+ * @param[in] size Size of src_p.
+ *
+ * @return zero(0) or negative error code.
+ */
+int fertilizer_meter_calibration_unpack(
+    struct fertilizer_meter_calibration_t *dst_p,
+    const uint8_t *src_p,
+    size_t size);
+
+/**
+ * Init message fields to default values from MeterCalibration.
+ *
+ * @param[in] msg_p Message to init.
+ *
+ * @return zero(0) on success or (-1) in case of nullptr argument.
+ */
+int fertilizer_meter_calibration_init(struct fertilizer_meter_calibration_t *msg_p);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t fertilizer_meter_calibration_grams_per_rev_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double fertilizer_meter_calibration_grams_per_rev_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool fertilizer_meter_calibration_grams_per_rev_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool fertilizer_meter_calibration_grams_per_rev_is_in_phys_range(double value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t fertilizer_meter_calibration_test_shaft_speed_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double fertilizer_meter_calibration_test_shaft_speed_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool fertilizer_meter_calibration_test_shaft_speed_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool fertilizer_meter_calibration_test_shaft_speed_is_in_phys_range(double value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t fertilizer_meter_calibration_revolutions_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double fertilizer_meter_calibration_revolutions_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool fertilizer_meter_calibration_revolutions_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool fertilizer_meter_calibration_revolutions_is_in_phys_range(double value);
 
 /**
  * Pack message AnalogOutputCommand.

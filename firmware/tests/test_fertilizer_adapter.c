@@ -1,4 +1,5 @@
 /* Fertilizer CAN adapter: frames in, validity and target worked out, frames out. */
+#include <math.h>
 #include <string.h>
 
 #include "check.h"
@@ -207,10 +208,12 @@ static void test_param_names(void)
     size_t nc = fert_common_param_refs(&cfg, common);
     CHECK_INT(nc, FERT_COMMON_PARAM_COUNT);
     CHECK(param_set(common, nc, "ground_speed_first_s", "0") == PARAM_UNKNOWN);
+    CHECK(param_set(refs, n, "use_calibration", "0") == PARAM_OK && cfg.use_calibration == 0.0);
+    CHECK(param_set(common, nc, "use_calibration", "0") == PARAM_UNKNOWN);
     /* the open-loop law takes only the feedforward keys (and the adapter's) */
     fert_config_defaults(&cfg, PPID_LAW_OPEN_LOOP);
     n = fert_param_refs(&cfg, refs);
-    CHECK_INT(n, 8);
+    CHECK_INT(n, 9); /* 5 feedforward keys, stale_after_s, period_s, ground_speed_first_s, use_calibration */
     CHECK(param_set(refs, n, "ki1", "0.5") == PARAM_UNKNOWN);
     CHECK(param_set(refs, n, "v_max", "8") == PARAM_OK);
     CHECK(param_set(refs, n, "ff_linear_below_rpm", "4") == PARAM_OK
@@ -307,6 +310,59 @@ static void test_paper_literal_starts_at_zero(void)
     CHECK_INT(a.last.out.segment, 1);
 }
 
-TEST_MAIN("fertilizer_adapter", test_idle_frames, test_bench_feedforward, test_row_validity,
+static hal_can_frame_t calibration(double grams_per_rev, double shaft_rpm)
+{
+    struct fertilizer_meter_calibration_t m;
+    memset(&m, 0, sizeof m);
+    m.grams_per_rev = fertilizer_meter_calibration_grams_per_rev_encode(grams_per_rev);
+    m.test_shaft_speed = fertilizer_meter_calibration_test_shaft_speed_encode(shaft_rpm);
+    m.revolutions = 50;
+    hal_can_frame_t f = {FERTILIZER_METER_CALIBRATION_FRAME_ID, false, 8, {0}};
+    fertilizer_meter_calibration_pack(f.data, &m, sizeof f.data);
+    return f;
+}
+
+/* MeterCalibration: the test's grams per revolution fix ff_coeff (the same expression as
+ * calibration.py), the feedforward follows; a frame without a test changes nothing; with
+ * use_calibration = 0 the frame is ignored. */
+static void test_calibration_replaces_ff_coeff(void)
+{
+    start(PPID_LAW_PHYSICAL);
+    hal_can_frame_t out[FERT_MAX_OUT];
+    double nominal = a.cfg.core.ff_coeff;
+    /* the nominal map's own grams per revolution at 20 r/min: the coefficient comes back */
+    double g_rev = 60.0 * nominal * pow(20.0, a.cfg.core.ff_exponent) / 20.0;
+    CHECK_NEAR(fert_ff_coeff_from_test(g_rev, 20.0, a.cfg.core.ff_exponent, 5.0), nominal, 1e-12);
+    /* below the knee the grams per revolution are the knee's */
+    double g_knee = 60.0 * nominal * pow(5.0, a.cfg.core.ff_exponent) / 5.0;
+    CHECK_NEAR(fert_ff_coeff_from_test(g_knee, 3.0, a.cfg.core.ff_exponent, 5.0), nominal, 1e-12);
+    CHECK(fert_ff_coeff_from_test(0.0, 20.0, 0.6537, 5.0) == 0.0);
+    CHECK(fert_ff_coeff_from_test(93.0, 0.0, 0.6537, 5.0) == 0.0);
+    CHECK(fert_ff_coeff_from_test(650.0, 100.0, 0.6537, 5.0) > 0.0);
+
+    hal_can_frame_t sp = setpoint(1, true, 23.0, 0, 0, 0, 4);
+    fert_on_frame(&a, &sp, 0.0);
+    size_t n = fert_step(&a, 0.0, out);
+    long long before = ch1_mv(out, n);
+    hal_can_frame_t cal = calibration(93.5, 20.0); /* a lot ~3.5 % lighter than the map */
+    fert_on_frame(&a, &cal, 0.05);
+    double expect = fert_ff_coeff_from_test(93.5, 20.0, a.cfg.core.ff_exponent, 5.0);
+    CHECK(a.cfg.core.ff_coeff == expect);
+    n = fert_step(&a, 0.1, out);
+    CHECK(ch1_mv(out, n) > before); /* a lighter lot: the shaft turns faster for 23 g/s */
+    CHECK_INT(ch1_mv(out, n), (long long)rint(ppid_feedforward(&a.cfg.core, 23.0) * 1000.0));
+    hal_can_frame_t none = calibration(0.0, 20.0);
+    fert_on_frame(&a, &none, 0.15);
+    CHECK(a.cfg.core.ff_coeff == expect);
+
+    fert_config_t cfg;
+    fert_config_defaults(&cfg, PPID_LAW_PHYSICAL);
+    cfg.use_calibration = 0.0;
+    fert_init(&a, &cfg);
+    fert_on_frame(&a, &cal, 0.0);
+    CHECK(a.cfg.core.ff_coeff == nominal);
+}
+
+TEST_MAIN("fertilizer_adapter", test_calibration_replaces_ff_coeff, test_idle_frames, test_bench_feedforward, test_row_validity,
           test_field_target, test_ground_speed_first, test_constant_speed_mode_is_open_loop,
           test_paper_literal_starts_at_zero, test_mode_change_resets, test_param_names)

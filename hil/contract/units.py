@@ -41,6 +41,8 @@ UNITS: dict[str, tuple[str, float]] = {
     "L/min": ("volume flow", 1e6 / 60.0),
     # mass (base g)
     "g": ("mass", 1.0), "kg": ("mass", 1000.0), "mg": ("mass", 1e-3), "t": ("mass", 1e6),
+    # mass per revolution (base g/rev: a meter's calibration)
+    "g/rev": ("mass per revolution", 1.0), "kg/rev": ("mass per revolution", 1000.0),
     # length (base m)
     "m": ("length", 1.0), "mm": ("length", 1e-3), "cm": ("length", 1e-2), "km": ("length", 1e3),
     "um": ("length", 1e-6), "µm": ("length", 1e-6),

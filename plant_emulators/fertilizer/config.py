@@ -388,6 +388,33 @@ class WiringConfig:
 
 
 @dataclass(frozen=True)
+class CalibrationTestConfig:
+    """The operator's calibration ("rotation") test of a fertilizer lot, before the runs.
+
+    The meter turns ``revolutions`` times at ``shaft_speed_rpm`` with the tubes off, the
+    product is weighed on a scale that reads to ``scale_resolution_kg`` within
+    ``scale_error_kg``, and the terminal sends the grams per revolution of one row
+    (``MeterCalibration``) every ``frame_period_ms``. A run whose lot is the one the
+    controllers' own calibration was made on (``calibrated_lot_frac``, the nominal rig's)
+    needs no test; :mod:`plant_emulators.fertilizer.calibration_test` computes it.
+    """
+
+    calibrated_lot_frac: float = -0.035
+    revolutions: int = 50
+    shaft_speed_rpm: float = 20.0
+    scale_resolution_kg: float = 0.1
+    scale_error_kg: float = 0.1
+    frame_period_ms: int = 1000
+
+    def __post_init__(self) -> None:
+        _positive(self, "revolutions", "shaft_speed_rpm", "scale_resolution_kg",
+                  "frame_period_ms")
+        _non_negative(self, "scale_error_kg")
+        if not -0.5 < self.calibrated_lot_frac < 0.5:
+            raise ValueError("calibrated_lot_frac must be within ±0.5")
+
+
+@dataclass(frozen=True)
 class FertilizerRigConfig:
     """The whole fertilizer rig: physics, sensors and wiring."""
 
@@ -401,6 +428,7 @@ class FertilizerRigConfig:
     analog_output: AnalogOutputConfig
     wiring: WiringConfig
     boom: BoomConfig
+    calibration_test: CalibrationTestConfig = CalibrationTestConfig()
 
     def __post_init__(self) -> None:
         if len(self.wiring.flow_module_node_ids) != self.meter.rows:

@@ -17,8 +17,11 @@ from hil.rig.canopen_device import CanopenDevice
 from hil.rig.device import PeriodicDevice
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from hil.contract.codec import ContractCodec
     from plant_emulators.fertilizer.analog_output import AnalogOutputChannel
+    from plant_emulators.fertilizer.calibration_test import CalibrationTest
     from plant_emulators.fertilizer.flow_sensor import FlowReport, FlowSensor
     from plant_emulators.fertilizer.ground_speed import GroundSpeedModel, TractorSpeedReport
 
@@ -160,6 +163,28 @@ class TerminalDevice(PeriodicDevice):
             "speed_source": self.speed_source,
             "active_rows": self.rows,
             "setpoint_counter": self.counter % 256,
+        })
+
+
+class CalibrationDevice(PeriodicDevice):
+    """The terminal's stored calibration test of the lot (MeterCalibration), repeated every
+    ``period_s`` while there is one; ``test`` returns it (None: no test was made)."""
+
+    def __init__(self, codec: ContractCodec, period_s: float,
+                 test: Callable[[], CalibrationTest | None]) -> None:
+        super().__init__("terminal calibration", codec.period_s("calibration_grams_per_rev",
+                                                                period_s))
+        self.codec = codec
+        self.test = test
+
+    def frames(self, time_s: float) -> list[can.Message]:
+        test = self.test()
+        if test is None:
+            return []
+        return self.codec.encode({
+            "calibration_grams_per_rev": test.grams_per_rev_row,
+            "calibration_shaft_speed": test.shaft_speed_rpm,
+            "calibration_revolutions": test.revolutions,
         })
 
 

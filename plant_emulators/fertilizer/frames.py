@@ -131,6 +131,7 @@ class FertilizerDatabase(BusDatabase):
             ("ground_speed_node_id", "GroundWheelSpeed", 0x180 + w.ground_speed_node_id),
             ("dut_node_id", "ControllerStatus", 0x180 + w.dut_node_id),
             ("dut_node_id", "FertSetpoint", 0x200 + w.dut_node_id),
+            ("dut_node_id", "MeterCalibration", 0x300 + w.dut_node_id),
             ("dut_node_id", "ControllerHeartbeat", 0x700 + w.dut_node_id),
             ("analog_output_node_id", "AnalogOutputCommand",
              0x200 + w.analog_output_node_id),
@@ -280,6 +281,16 @@ QUANTITIES: tuple[Quantity, ...] = (
     _q("active_rows", "rows", "to_dut", 1, 7, 1, "rows sharing the total target flow"),
     _q("setpoint_counter", "", "to_dut", 0, 255, 1, "rolling counter of the set-points",
        kind="counter"),
+    # the operator's calibration test of the lot (MeterCalibration; optional: sent only when
+    # the run's lot is not the one the controllers' own calibration was made on)
+    _q("calibration_grams_per_rev", "g/rev", "to_dut", 0, 655.35, 0.01,
+       "the operator's calibration test: weighed grams per meter-shaft revolution and row "
+       "at calibration_shaft_speed"),
+    _q("calibration_shaft_speed", "r/min", "to_dut", 0, 100, 0.01,
+       "meter shaft speed of the calibration test"),
+    _q("calibration_revolutions", "", "to_dut", 0, 65535, 1,
+       "shaft revolutions the calibration test counted"),
+
     # each row's flow detection module (FlowModule<row>)
     _q("row_flow", "g/s", "to_dut", 0, 250, 0.01,
        "the row's sensed flow: mean over the module's window", per_row=True, required=True,
@@ -377,6 +388,7 @@ def bus_contract(config: FertilizerRigConfig | None = None) -> Contract:
         bitrate_bps=w.bitrate_bps, command_ids=frozenset({0x200 + analog}),
         node_ids=node_ids,
         periods_ms={"target_flow": float(w.setpoint_period_ms),
+                    "calibration_grams_per_rev": float(cfg.calibration_test.frame_period_ms),
                     "wheel_speed": float(w.ground_speed_period_ms),
                     "wheel_based_speed": float(w.tractor_speed_period_ms),
                     "row_flow": sensor.report_period_s * 1000.0},

@@ -17,9 +17,15 @@ from hil.errors import ConfigError
 from hil.rig import Rig, RigContext
 from hil.rig.device import Heartbeat
 from plant_emulators.fertilizer.analog_output import AnalogOutputChannel
+from plant_emulators.fertilizer.calibration_test import (
+    CalibrationTest,
+    lot_seed_words,
+    run_calibration_test,
+)
 from plant_emulators.fertilizer.config import FertilizerRigConfig, load_rig_config
 from plant_emulators.fertilizer.devices import (
     AnalogOutputModule,
+    CalibrationDevice,
     FlowModuleDevice,
     GroundWheelDevice,
     TerminalDevice,
@@ -55,6 +61,12 @@ class FertilizerRig(Rig):
         "speed_source": "0 Hall wheel, 1 PGN 65096, 2 PGN 65097 (FertSetpoint.SpeedSource)",
         "active_rows": "rows 1..N metering (FertSetpoint.ActiveRows, N rows share the total "
                        "target): their clutches in, the others' out",
+        "lot_offset_frac": "at 0 s only: the run's fertilizer lot delivers this fraction more "
+                           "than the lot the controllers' own calibration was made on "
+                           "(calibration_test.calibrated_lot_frac)",
+        "calibration_test": "at 0 s only: 1 the operator ran the calibration test of the lot "
+                            "(the terminal sends MeterCalibration), 0 not; by default it did "
+                            "whenever the lot is not the calibrated one",
     }
     faults: ClassVar[dict[str, str]] = {
         "flow_sensor_silent": "the flow module of row <target> sends nothing",
@@ -120,6 +132,14 @@ class FertilizerRig(Rig):
         self.flow_modules = [FlowModuleDevice(row + 1, sensor, self.codec, valid_max)
                              for row, sensor in enumerate(self.sensors)]
         self.terminal = TerminalDevice(self.codec, wiring.setpoint_period_ms / 1000.0, rows)
+        #: the run's lot (density_offset_mean_frac, or what the scenario sets at 0 s), whether
+        #: the operator tested it (None: whenever it is not the calibrated lot) and the test
+        self.lot_frac = cfg.fertilizer.density_offset_mean_frac
+        self._lot_set_by_scenario = False
+        self._calibration_performed: bool | None = None
+        self._calibration: CalibrationTest | None = None
+        self.calibration = CalibrationDevice(
+            self.codec, cfg.calibration_test.frame_period_ms / 1000.0, self.calibration_test)
         tractor = ctx.scenario.tractor if ctx.scenario is not None else None
         #: a field run under a Task Controller: the rig is an ISOBUS tractor (field_run.py);
         #: its TECU and TC replace the terminal's FertSetpoint and the speed frames
@@ -129,7 +149,7 @@ class FertilizerRig(Rig):
         tractor_side = ([self.field_run.device] if self.field_run is not None else
                         [TractorSpeedDevice(self.speed, self.codec,
                                             wiring.tractor_speed_period_ms / 1000.0),
-                         self.terminal])
+                         self.terminal, self.calibration])
         self.devices = [
             *self.flow_modules,
             GroundWheelDevice(self.speed, self.codec, wiring.ground_speed_period_ms / 1000.0),
@@ -229,6 +249,41 @@ class FertilizerRig(Rig):
         while run.notes:
             self.ctx.note(*run.notes.pop(0))
 
+    def calibration_test(self) -> CalibrationTest | None:
+        """The operator's calibration test of the run's lot, or None when none was made (the
+        lot is the one the controllers' own calibration was made on, or the scenario says
+        so). The test of a campaign sample's lot is the same in all its runs: its draws are
+        seeded by the lot; a lot the scenario sets is tested with the run's seed."""
+        performed = self._calibration_performed
+        if performed is None:
+            performed = self.lot_frac != self.config.calibration_test.calibrated_lot_frac
+        if not performed:
+            return None
+        if self._calibration is None:
+            words = lot_seed_words(self.lot_frac)
+            if self._lot_set_by_scenario:
+                words = (self.ctx.seed & 0xFFFFFFFF, *words)
+            self._calibration = run_calibration_test(self.config, self.lot_frac,
+                                                     seed_words=words)
+        return self._calibration
+
+    def _set_lot(self, name: str, value: float, time_s: float) -> None:
+        if time_s > 0.0:
+            raise ConfigError(f"{name} is the run's lot and the operator's test before it: set "
+                              f"it in [initial] (0 s), not at {time_s:g} s", key=name)
+        if name == "calibration_test":
+            if value not in (0.0, 1.0):
+                raise ConfigError(f"calibration_test must be 0 or 1, got {value}", key=name)
+            self._calibration_performed = bool(value)
+            return
+        if not -0.5 < value < 0.5:
+            raise ConfigError(f"lot_offset_frac must be within +-0.5, got {value}", key=name)
+        lot = self.config.calibration_test.calibrated_lot_frac + value
+        self.plant.density_offset_frac += lot - self.lot_frac
+        self.lot_frac = lot
+        self._lot_set_by_scenario = True
+        self._calibration = None
+
     def physics_engines(self) -> dict[str, str]:
         return {"plant": self.plant.engine, "ground_speed": self.speed.engine,
                 "flow_sensors": self.sensors[0].engine}
@@ -254,6 +309,8 @@ class FertilizerRig(Rig):
             t.speed_source = int(value)
         elif name == "active_rows":
             self._switch_rows(value)
+        elif name in ("lot_offset_frac", "calibration_test"):
+            self._set_lot(name, value, time_s)
         else:
             raise ConfigError(f"unknown input {name!r}", key=name)
 
@@ -358,6 +415,9 @@ class FertilizerRig(Rig):
                 "delivered_total_g": sum(p.delivered_g),
                 "target_mass_per_row_g": self.target_mass_g,
                 "density_offset_frac": p.density_offset_frac,
+                "lot_frac": self.lot_frac,
+                "calibration_test": (test.to_dict() if (test := self.calibration_test())
+                                     is not None else None),
                 "row_gain": list(p.row_gain),
                 **({"target_mass_row_g": list(self.target_mass_row_g)}
                    if self.switched_rows else {}),

@@ -5,7 +5,9 @@ encoded through the fertilizer rig's DBC (:class:`FertilizerDatabase`); the cont
 of the pure cores of :mod:`reference_controllers.fertilizer.piecewise_pid`.
 
 * reads FertSetpoint 0x210, FlowModule1-4 0x181-0x184, GroundWheelSpeed 0x185, PGN 65096 and
-  PGN 65097 (matched by PGN), SYNC 0x080;
+  PGN 65097 (matched by PGN), SYNC 0x080, and MeterCalibration 0x310 when the terminal sends
+  one: the operator's calibration test of the lot replaces ``ff_coeff`` from then on
+  (:mod:`reference_controllers.fertilizer.calibration`; ``use_calibration = 0`` ignores it);
 * one control step per SYNC (lockstep, ``step_on_sync``) or per :meth:`on_tick` (a daemon's
   own timer);
 * each step writes AnalogOutputCommand 0x220 (Ch1 mV = round(volts·1000)) and the heartbeat
@@ -19,7 +21,7 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import can
 
@@ -33,6 +35,7 @@ from plant_emulators.fertilizer.frames import (
     NmtState,
     j1939_pgn,
 )
+from reference_controllers.fertilizer.calibration import ff_coeff_from_test
 from reference_controllers.fertilizer.piecewise_pid import (
     OpenLoop,
     PiecewisePid,
@@ -53,11 +56,13 @@ OPEN_LOOP_KEYS = ("ff_coeff", "ff_exponent", "shaft_rpm_per_v", "v_max", "ff_lin
 class FlowAdapterParams:
     """The adapter's own parameters: report staleness, the control period and how fresh a
     ground-based speed must be to be used before the terminal's source (s; 0: the terminal's
-    source alone; :mod:`reference_controllers.fertilizer.speeds`)."""
+    source alone; :mod:`reference_controllers.fertilizer.speeds`) and whether the terminal's
+    calibration test (MeterCalibration) replaces ``ff_coeff`` (1) or is ignored (0)."""
 
     stale_after_s: float = 2.5
     period_s: float = 0.1
     ground_speed_first_s: float = 0.3
+    use_calibration: float = 1.0
 
     def __post_init__(self) -> None:
         if not self.period_s > 0.0:
@@ -67,6 +72,8 @@ class FlowAdapterParams:
         if not self.ground_speed_first_s >= 0.0:
             raise ValueError(f"ground_speed_first_s must be >= 0, got "
                              f"{self.ground_speed_first_s}")
+        if self.use_calibration not in (0.0, 1.0):
+            raise ValueError(f"use_calibration must be 0 or 1, got {self.use_calibration}")
 
 
 def resolve_params(law: str | None, params: Mapping[str, ParamValue] | None) -> tuple[
@@ -133,7 +140,7 @@ class FlowController(Controller):
         self.open_loop = OpenLoop(self.core_params)
         self.closed_loop = None if self.law == "open-loop" else PiecewisePid(self.core_params)
         self.ids = {name: self.db.frame_id(name)
-                    for name in ("FertSetpoint", "GroundWheelSpeed")}
+                    for name in ("FertSetpoint", "GroundWheelSpeed", "MeterCalibration")}
         self.flow_rows = {self.db.frame_id(f"FlowModule{i}"): i for i in range(1, 5)}
         self.rows = FlowRows(self.adapter_params.stale_after_s, self.adapter_params.period_s)
         self.setpoint: dict[str, float] = {}
@@ -175,6 +182,23 @@ class FlowController(Controller):
             self.setpoint = {k: float(v) for k, v in self.db.decode(msg)[1].items()}
         elif can_id == self.ids["GroundWheelSpeed"]:
             self._speed("hall", self.db.decode(msg)[1]["WheelSpeed"])
+        elif can_id == self.ids["MeterCalibration"] and self.adapter_params.use_calibration:
+            s = self.db.decode(msg)[1]
+            self.calibrate(float(s["GramsPerRev"]), float(s["TestShaftSpeed"]))
+
+    def calibrate(self, grams_per_rev: float, shaft_rpm: float) -> None:
+        """The operator's calibration test: the feedforward map's coefficient from its grams
+        per revolution at its shaft speed, for both laws; a frame without a usable test
+        changes nothing."""
+        p = self.core_params
+        coeff = ff_coeff_from_test(grams_per_rev, shaft_rpm, p.ff_exponent,
+                                   p.ff_linear_below_rpm)
+        if coeff is None or coeff == p.ff_coeff:
+            return
+        self.core_params = replace(p, ff_coeff=coeff)
+        self.open_loop.params = self.core_params
+        if self.closed_loop is not None:
+            self.closed_loop.params = self.core_params
 
     def _speed(self, source: str, value: float) -> None:
         value = float(value)

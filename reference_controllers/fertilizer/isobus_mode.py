@@ -333,6 +333,9 @@ class IsobusFlowController(FlowController):
             raise ParamError("parameter 'ground_speed_first_s' is the terminal mode's: the "
                              "ISOBUS mode always prefers PGN 65097 (choose with 'speed' and "
                              "'speed_timeout_s')")
+        if "use_calibration" in rest:
+            raise ParamError("parameter 'use_calibration' is the terminal mode's: the ISOBUS "
+                             "mode's calibration comes from the Virtual Terminal")
         config = rig_config or load_rig_config()
         super().__init__(law, rest, step_on_sync=step_on_sync, rig_config=config)
         self.name = f"{self.name}-isobus"

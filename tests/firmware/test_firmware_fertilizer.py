@@ -164,3 +164,35 @@ def test_short_lockstep_run_of_the_fertilizer_rig(firmware_bin: Path, firmware_d
     ff = feedforward_v(23.0)
     assert enabled.min() > 0.9 * ff and enabled.max() < 1.5 * ff
     assert wall < 20.0
+
+
+def test_both_builds_fit_their_map_to_the_calibration_test(firmware_bin: Path, firmware_dut,
+                                                           tmp_path: Path) -> None:
+    """A lot 8 points denser than ff_coeff's, tested by the operator (MeterCalibration): the
+    firmware over the software bus and the Python controller in process command the same
+    millivolts at every step, and less than they do when told to ignore the test."""
+    from hil.dut import InProcessDut
+    from reference_controllers.fertilizer.adapter import FlowController
+
+    scenario = Scenario(name="fw-lot", description="", rig="fertilizer", duration_s=6.0,
+                        initial={"terminal_mode": 1.0, "enable": 0.0, "target_flow_gps": 23.0,
+                                 "lot_offset_frac": 0.08, "calibration_test": 1.0},
+                        events=(Event(at_s=3.0, set={"enable": 1.0}),))
+
+    def command(dut, name: str, bus: str) -> np.ndarray:
+        run = run_scenario(FertilizerRig, scenario, dut,
+                           RunOptions(out_dir=tmp_path / name, bus=bus, clock="lockstep",
+                                      seed=11))
+        assert run.record.get("error") in (None, ""), run.record.get("error")
+        return load_traces(run.out_dir / "traces.npz")[0]["command_v"]
+
+    firmware = command(firmware_dut([str(firmware_bin / APP), "--sync", "--param",
+                                     "ff_coeff=4.390"], bootup_id=HEARTBEAT), "fw", "softbus")
+    python = command(InProcessDut(FlowController("physical", {"ff_coeff": 4.390})), "py",
+                     "inline")
+    ignored = command(InProcessDut(FlowController("physical", {"ff_coeff": 4.390,
+                                                               "use_calibration": 0})),
+                      "ignored", "inline")
+    assert np.array_equal(firmware, python)
+    enabled = firmware > 0.0
+    assert enabled.any() and np.all(firmware[enabled][:10] < ignored[enabled][:10])

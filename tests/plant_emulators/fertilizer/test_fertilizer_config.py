@@ -63,7 +63,8 @@ def test_every_key_names_its_unit_or_is_dimensionless():
                      "speed_loop_damping", "vibration_damping", "flow_exponent",
                      "dbc_file", "analog_output_eds_file", "analog_output_channel",
                      "flow_module_node_ids", "dut_node_id", "analog_output_node_id",
-                     "ground_speed_node_id", "tractor_ecu_address", "tractor_priority"}
+                     "ground_speed_node_id", "tractor_ecu_address", "tractor_priority",
+                     "revolutions"}
     units = ("_v", "_ohm", "_kg_cm2", "_nm", "_a", "_s", "_rpm", "_hz", "_frac", "_gps",
              "_kg", "_ms", "_g_per_pf", "_g", "_ff", "_af", "_pf", "_ppm", "_mps2", "_m",
              "_mps", "_mv", "_bps", "_per_krpm", "_per_rpm", "_per_s", "_per_mps",
