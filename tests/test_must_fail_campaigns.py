@@ -75,3 +75,26 @@ def test_must_fail_fails_every_sample_of_a_campaign(tmp_path: Path, profile: Pat
             assert NOT_PASSED & set(outcomes), (
                 f"{profile.stem}, seed {sample['seed']}: {name} passed every condition "
                 f"({outcomes})")
+
+
+@pytest.mark.slow
+def test_ignoring_the_calibration_test_fails_the_dispersed_campaign(tmp_path: Path) -> None:
+    """On the shipped dispersion every sample draws its own lot and the terminal sends the
+    operator's test of it (MeterCalibration): a controller that ignores the test fails every
+    sample on the tested lot's step, what its header names."""
+    profile = MUST_FAIL / "fertilizer-ignores-calibration-daemon.toml"
+    out = tmp_path / "camp"
+    proc = subprocess.run(
+        [sys.executable, "-m", "hil", "campaign", str(profile), "--samples", "2",
+         "--seed", str(SEED + 100), "--bus", "inline", "--suite", "fast,robustness",
+         "--workers", "2", "--max-reruns", "0", "--no-progress", "--out", str(out)],
+        capture_output=True, text=True, cwd=ROOT, timeout=1800)
+    assert (out / "campaign.json").exists(), proc.stdout + proc.stderr
+    doc = json.loads((out / "campaign.json").read_text())
+    assert proc.returncode == 1 and doc["summary"]["verdict"] == "fail", doc["summary"]
+    assert doc["dispersion"]["parameters"], doc.get("dispersion")
+    for sample in doc["samples"]:
+        assert sample["verdict"] == "fail", (sample["seed"], sample.get("error"))
+        outcomes = [m["outcome"] for m in sample["measurements"]
+                    if m["name"] == "flow.lot.calibrated.overshoot"]
+        assert outcomes and NOT_PASSED & set(outcomes), (sample["seed"], outcomes)

@@ -179,4 +179,8 @@ def test_the_rc400_qualifies_with_the_reference_measurements(tmp_path: Path) -> 
                for name, profile in (("ref", REFERENCE), ("rc400", PROFILE))}
     assert len(records["ref"]) > 30
     assert ("flow.comparison.accuracy_gain", "{}") in records["ref"]
-    assert records["rc400"] == records["ref"]
+    # the RC-400's database has no calibration test frame (optional in the contract): the
+    # tested lot is skipped for it, and only for it
+    tested = {key for key in records["ref"] if key[0] == "flow.lot.calibrated.overshoot"}
+    assert tested and not tested & set(records["rc400"])
+    assert records["rc400"] == {k: v for k, v in records["ref"].items() if k not in tested}
