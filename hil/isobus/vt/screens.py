@@ -167,19 +167,12 @@ def vt_record(vt: VirtualTerminalServer, recorder: ScreenRecorder | None = None,
               ) -> dict[str, Any]:
     """The VT's part of a run's record (JSON-ready)."""
     sets = []
-    for ws in vt.sessions.values():
-        entry: dict[str, Any] = {"address": ws.address,
-                                 "name": f"{ws.name:016X}" if ws.name is not None else None,
-                                 "connected_s": ws.connected_s, "active": ws.active}
-        if ws.pool is not None:
-            label = ws.loaded_label or (ws.stored_labels[-1] if ws.stored_labels else None)
-            entry.update({
-                "pool_bytes": ws.pool.size, "objects": len(ws.pool),
-                "vt_version": ws.pool.version, "transfers": len(ws.pool.raw),
-                "version_label": label.decode("latin-1").rstrip() if label else None,
-                "sha256": ws.pool.sha256, "activated_s": ws.activated_s,
-                "loaded_from_storage": ws.loaded_label is not None,
-                "active_mask": ws.active_mask, "object_types": ws.pool.counts()})
+    for a in vt.activations:
+        entry = asdict(a)
+        entry["name"] = f"{a.name:016X}" if a.name is not None else None
+        entry["activated_s"] = entry.pop("time_s")
+        ws = vt.sessions.get(a.address)
+        entry["connected_at_end"] = ws is not None and ws.activated_s == a.time_s
         sets.append(entry)
     out: dict[str, Any] = {
         "vt_version": vt.options.version, "data_mask_px": vt.options.data_mask_px,

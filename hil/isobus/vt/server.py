@@ -142,6 +142,23 @@ class VtCommandRecord:
     detail: str
 
 
+@dataclass
+class PoolActivation:
+    """A pool that became active: what the run's record keeps of it."""
+
+    time_s: float
+    address: int
+    name: int | None
+    pool_bytes: int
+    objects: int
+    vt_version: int
+    transfers: int
+    sha256: str
+    object_types: dict[str, int]
+    version_label: str | None
+    loaded_from_storage: bool
+
+
 ChangeHook = Callable[[WorkingSet, float, str], None]
 
 
@@ -173,6 +190,10 @@ class VirtualTerminalServer:
         self.sessions: dict[int, WorkingSet] = {}
         self.events: list[VtEvent] = []
         self.commands: list[VtCommandRecord] = []
+        #: (time, address, data) of the working sets' responses to the VT's own messages
+        self.responses: list[tuple[float, int, bytes]] = []
+        #: every pool that became active, in order (kept when its working set leaves)
+        self.activations: list[PoolActivation] = []
         self.on_change: list[ChangeHook] = []
         self.last_function = 0xFF
         self._next_status_s: float | None = None
@@ -333,6 +354,11 @@ class VirtualTerminalServer:
                 ws.version = d[2] if len(d) > 2 and d[2] != 0xFF else None
             ws.maintenance_s = t
             return
+        if function in _RESPONSES:
+            # the working set's response to a message the VT sent (a soft key or button
+            # activation, a numeric or string value the operator entered): kept, not answered
+            self.responses.append((t, ws.address, bytes(d)))
+            return
         self.last_function = function
         handler = self._STATELESS.get(function)
         if handler is not None:
@@ -428,6 +454,10 @@ class VirtualTerminalServer:
         else:
             self.store.store(ws.key, label, ws.pool.raw)
             ws.stored_labels.append(label)
+            for activation in reversed(self.activations):
+                if activation.address == ws.address:
+                    activation.version_label = _text(label)
+                    break
             self._event(t, ws.address, "stored", f"version {_show(label)}, {ws.pool.size} "
                         f"bytes")
         self._send(ws.address, pad([d[0], 0xFF, 0xFF, 0xFF, 0xFF, error]))
@@ -447,7 +477,7 @@ class VirtualTerminalServer:
                 error = 0x01
                 self._event(t, ws.address, "load refused", f"version {_show(label)}: {err}")
             else:
-                self._activate(ws, pool, t, f"loaded version {_show(label)}")
+                self._activate(ws, pool, t, f"loaded version {_show(label)}", label)
                 ws.loaded_label = label
         self._send(ws.address, pad([d[0], 0xFF, 0xFF, 0xFF, 0xFF, error]))
         if not error:
@@ -502,10 +532,14 @@ class VirtualTerminalServer:
                                     0]))
         self._changed(ws, t, "pool active")
 
-    def _activate(self, ws: WorkingSet, pool: ObjectPool, t: float, how: str) -> None:
+    def _activate(self, ws: WorkingSet, pool: ObjectPool, t: float, how: str,
+                  label: bytes | None = None) -> None:
         ws.pool = pool
         ws.activated_s = t
         ws.open_input = None
+        self.activations.append(PoolActivation(
+            t, ws.address, ws.name, pool.size, len(pool), pool.version, len(pool.raw),
+            pool.sha256, pool.counts(), _text(label) if label else None, label is not None))
         self._event(t, ws.address, "activated",
                     f"{len(pool)} objects, {pool.size} bytes, version {pool.version}, "
                     f"sha256 {pool.sha256[:16]}, {how}")
@@ -646,10 +680,20 @@ class VirtualTerminalServer:
 
 
 _COMMAND_FUNCTIONS = frozenset(range(0xA0, 0xC0))
+#: functions of the VT's own messages, which a working set answers with the same function
+_RESPONSES = frozenset({Function.SOFT_KEY_ACTIVATION, Function.BUTTON_ACTIVATION,
+                        Function.POINTING_EVENT, Function.VT_SELECT_INPUT_OBJECT,
+                        Function.VT_ESC, Function.VT_CHANGE_NUMERIC_VALUE,
+                        Function.VT_CHANGE_ACTIVE_MASK, Function.VT_CHANGE_SOFT_KEY_MASK,
+                        Function.VT_CHANGE_STRING_VALUE, 0x09, 0x0A})
+
+
+def _text(label: bytes) -> str:
+    return label.decode("latin-1").rstrip()
 
 
 def _show(label: bytes) -> str:
-    return repr(label.decode("latin-1").rstrip())
+    return repr(_text(label))
 
 
 VT_FUNCTION = 29

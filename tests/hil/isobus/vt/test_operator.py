@@ -63,6 +63,12 @@ def test_a_held_soft_key_by_label() -> None:
     assert {(k.object_id, k.parent_id, k.key_code, k.button) for k in keys} == {
         (IDS.key_master, IDS.keys, 1, False)}
     assert implement.metering
+    # the implement's activation responses are taken as responses: not refused, not NACKed
+    assert [r[2][:2] for r in bench.vt.responses] == [bytes([0x00, a]) for a in
+                                                     (1, 2, 2, 2, 2, 0)]
+    assert not [c for c in bench.vt.commands if c.error == 0xFF]
+    assert not [f for f in bench.wire.frames if (f.frame.arbitration_id >> 8) & 0x3FF00
+                == 0xE800]
 
 
 def test_a_button_by_id_reports_its_mask() -> None:

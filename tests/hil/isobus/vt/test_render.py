@@ -117,6 +117,12 @@ def test_screens_when_the_mask_or_a_shown_value_changes(tmp_path: Path) -> None:
     assert record["screens"][0]["file"] == "screen-0001.png"
     path = write_vt_record(tmp_path, bench.vt, recorder)
     assert json.loads(path.read_text())["working_sets"][0]["objects"] == len(implement_pool())
+    # a working set that left is still in the record
+    bench.implement_cf.applications.clear()
+    bench.run_for(4.0)
+    assert not bench.vt.sessions
+    (gone,) = vt_record(bench.vt, recorder)["working_sets"]
+    assert gone["sha256"] == entry["sha256"] and not gone["connected_at_end"]
 
 
 def test_a_locked_mask_is_not_redrawn_until_unlocked() -> None:
