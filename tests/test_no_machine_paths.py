@@ -1,8 +1,8 @@
 """The repository carries its own facts (issue 43): no tracked file sends its reader to a file
-outside the repository, as a design-notes directory beside the checkout (``../shared``) or a
-path of the machine it was written on (the work tree's ``/work/…``, a home directory). The
-facts such notes held belong on the sources page (docs/reference/sources.md); a fixture names
-files relative to the repository."""
+outside the repository, as a design-notes directory beside the checkout (``shared`` in the
+checkout's parent) or a path of the machine it was written on (its work tree, a home
+directory). The facts such notes held belong on the sources page (docs/reference/sources.md); a
+fixture names files relative to the repository. (This file spells the patterns in pieces.)"""
 
 from __future__ import annotations
 
