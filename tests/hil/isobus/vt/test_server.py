@@ -143,3 +143,49 @@ def test_vt_address_and_name() -> None:
     bench = VtBench(client=False)
     bench.run_until(1.0)
     assert bench.vt.port.address == VT_ADDRESS
+
+
+@pytest.mark.realtime
+def test_in_real_time_on_a_virtual_can_bus() -> None:
+    """The same VT and client, each driven in real time by hil.isobus.wire.drive on a
+    python-can virtual bus (two threads): connected, pool active, a key press arrives."""
+    import threading
+
+    from hil.bus.registry import open_bus
+    from hil.isobus.network import IsobusNetwork
+    from hil.isobus.vt.bench import IMPLEMENT_ADDRESS as ADDRESS
+    from hil.isobus.vt.bench import IMPLEMENT_NAME
+    from hil.isobus.vt.client import VtClient
+    from hil.isobus.vt.messages import KeyActivation
+    from hil.isobus.vt.server import add_vt
+    from hil.isobus.wire import drive
+
+    rig, implement = IsobusNetwork(name="rig"), IsobusNetwork(name="implement")
+    vt = add_vt(rig)
+    cf = implement.add(IMPLEMENT_NAME, ADDRESS, "implement")
+    client = VtClient(cf, [implement_pool().to_bytes()])
+    cf.run(client)
+    rig_bus, implement_bus = open_bus("virtual:vt-realtime"), open_bus("virtual:vt-realtime")
+    pressed = threading.Event()
+
+    def press() -> None:
+        vt.post(lambda now: vt.key_event(IDS.key_master, KeyActivation.PRESSED, now))
+        pressed.set()
+
+    def run_rig() -> None:
+        now = drive(rig, rig_bus, 8.0, until=lambda: bool(vt.active_working_set))
+        if vt.active_working_set is not None:
+            press()
+        drive(rig, rig_bus, 1.0, start_s=now)
+
+    thread = threading.Thread(target=run_rig)
+    thread.start()
+    try:
+        drive(implement, implement_bus, 9.0, until=lambda: bool(client.keys))
+    finally:
+        thread.join()
+        rig_bus.shutdown()
+        implement_bus.shutdown()
+    assert client.state == "connected" and pressed.is_set()
+    assert [(k.object_id, k.activation) for k in client.keys] == [
+        (IDS.key_master, KeyActivation.PRESSED)]
