@@ -47,7 +47,8 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
     check.add_argument("-q", "--quiet", action="store_true",
                        help="one line per profile, without its effective limits")
     check.set_defaults(func=_check)
-    show = sub.add_parser("show", help="print a profile as resolved (JSON)")
+    show = sub.add_parser("show", help="print a profile as resolved (JSON), its effective "
+                                       "limits and the code under test included")
     show.add_argument("file")
     show.add_argument("--bus", default="softbus", help="bus spec to expand {bus} with")
     show.add_argument("--clock", choices=["lockstep", "realtime"], default="lockstep")
@@ -219,7 +220,7 @@ def _show(args: argparse.Namespace) -> int:
            if profile.launch.command else None,
            "inprocess": profile.launch.inprocess or None,
            "parameters": profile.parameters,
-           "limits": {k: {"low": v.low, "high": v.high} for k, v in profile.limits.items()}}
+           "limits": [lim.to_dict() for lim in profile_limits(profile)]}
     print(json.dumps(out, indent=2))
     return 0
 

@@ -176,3 +176,15 @@ def test_a_bad_controller_without_limits_fails_by_the_catalogue(tmp_path: Path) 
     assert any(m["name"] == "flow.step.steady_state_error" for m in failed), failed
     assert {m["limit_source"] for m in failed} == {"catalogue"}
     assert record["limits"] == {}
+
+
+def test_profile_show_gives_the_effective_limits_and_the_code(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = _profile(tmp_path, '"depth.field.pass_rate" = { low = 85.0, reason = "stony plot" }')
+    assert main(["profile", "show", str(path)]) == 0
+    shown = json.loads(capsys.readouterr().out)
+    limits = {lim["name"]: lim for lim in shown["limits"]}
+    assert limits["depth.field.pass_rate"]["origin"] == "loosened"
+    assert limits["depth.field.pass_rate"]["reason"] == "stony plot"
+    assert limits["depth.step.overshoot"]["limit"] == "<= 10"
+    assert shown["identity"]["code"]["program"]["path"] == "reference_controllers/daemon.py"
