@@ -409,6 +409,8 @@ def apply(ws: WorkingSet, data: bytes, now: float, *, depth: int = 0) -> Command
     """Apply one command; ``None`` when the rig's VT does not have the function."""
     if not data:
         return None
+    if len(data) < 8:
+        data = pad(data)
     function = data[0]
     if function in (Function.EXECUTE_MACRO, Function.EXECUTE_EXTENDED_MACRO):
         return _execute_macro(ws, data, now, depth)

@@ -342,6 +342,8 @@ class VirtualTerminalServer:
             return
         d = msg.data
         function = d[0]
+        if len(d) < 8 and function != Function.OBJECT_POOL_TRANSFER:
+            d = pad(d)        # a single frame is 8 bytes: a shorter one is read as padded
         known = msg.source in self.sessions
         ws = self._session(msg.source, t, f"function 0x{function:02X} first")
         if not known and function != Function.WORKING_SET_MAINTENANCE:
