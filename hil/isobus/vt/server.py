@@ -287,7 +287,7 @@ class VirtualTerminalServer:
     @property
     def active_working_set(self) -> WorkingSet | None:
         """The working set whose masks the VT shows: the first with an active pool."""
-        for ws in self.sessions.values():
+        for ws in list(self.sessions.values()):    # a copy: the browser VT asks from its thread
             if ws.active:
                 return ws
         return None
