@@ -197,3 +197,13 @@ def test_each_must_fail_implement_fails_its_check(defect: str) -> None:
     if defect == "bad-pool":
         refusal = result[2].ctl.vt.refusal
         assert refusal is not None and refusal.object_id == IDS.rate_out
+
+
+@pytest.mark.slow
+def test_two_lockstep_runs_of_the_scenario_give_identical_bus_logs(run: Run) -> None:
+    again = scenario()
+    first = [(f.time_s, f.sender, f.frame.arbitration_id, bytes(f.frame.data))
+             for f in run[3].frames]
+    second = [(f.time_s, f.sender, f.frame.arbitration_id, bytes(f.frame.data))
+              for f in again[3].frames]
+    assert len(first) > 1_000 and first == second
