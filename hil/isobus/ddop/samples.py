@@ -11,7 +11,14 @@ from __future__ import annotations
 from hil.isobus import ddi
 from hil.isobus.ddop.builder import PoolBuilder
 from hil.isobus.ddop.codec import serialise_pool
-from hil.isobus.ddop.objects import DdopObject, Device, DeviceElement, ElementType, TriggerMethod
+from hil.isobus.ddop.objects import (
+    DdopObject,
+    Device,
+    DeviceElement,
+    ElementType,
+    Property,
+    TriggerMethod,
+)
 from hil.isobus.ddop.pool import ObjectPool
 
 ON_CHANGE_OR_TIME = TriggerMethod.ON_CHANGE | TriggerMethod.TIME_INTERVAL
@@ -102,15 +109,21 @@ def section_control_pool(*, sections: int = 4, section_width_mm: int = 500,
 
 
 def parent_chain_pool(elements: int, *, name: int = 0xA00C80000AE00002,
-                      designator: bytes = b"") -> bytes:
+                      designator: bytes = b"", width_mm: int | None = None) -> bytes:
     """The bytes of a pool whose ``elements`` function elements each hang from the one before:
     the deepest parent chain a pool of its size can have (6,000 elements: 78 kB), for timing
     the validation of large pools. Element numbers beyond 4,095 break the standard's 12 bits
     and a validating TC refuses the pool; it must take time in proportion to its size to say
-    so. Not validated here."""
+    so. Not validated here. With ``width_mm`` the device element carries a working width
+    (DDI 67), so that a pool within the 12 bits is one the rig's tractor can use."""
     objects: list[DdopObject] = [
-        Device(0, b"Chain", b"1", name, b"1", b"CHAIN  ", b"en\x00\x00\x00\x00\xff", b""),
-        DeviceElement(1, ElementType.DEVICE, b"Chain", 0, 0)]
+        Device(0, b"Chain", b"1", name, b"1", b"CHAIN  ", b"en\x00\x00\x00\x00\xff", b"")]
+    if width_mm is None:
+        objects.append(DeviceElement(1, ElementType.DEVICE, b"Chain", 0, 0))
+    else:
+        oid = elements + 2
+        objects += [DeviceElement(1, ElementType.DEVICE, b"Chain", 0, 0, (oid,)),
+                    Property(oid, ddi.ACTUAL_WORKING_WIDTH, width_mm, b"Width")]
     for k in range(elements):
         objects.append(DeviceElement(2 + k, ElementType.FUNCTION, designator, 1 + k, 1 + k))
     return serialise_pool(objects, version=4)
