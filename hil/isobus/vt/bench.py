@@ -29,8 +29,9 @@ class VtBench:
 
     def __init__(self, transfers: Sequence[bytes] = (), *, version_label: bytes | None = None,
                  options: VtOptions | None = None, store: VersionStore | None = None,
-                 client: bool = True, client_version: int = 4) -> None:
-        self.rig = IsobusNetwork(name="rig")
+                 client: bool = True, client_version: int = 4,
+                 vt_start_s: float = 0.0) -> None:
+        self.rig = IsobusNetwork(name="rig", start_s=vt_start_s)
         self.vt: VirtualTerminalServer = add_vt(self.rig, options, store)
         self.implement = IsobusNetwork(name="implement")
         self.implement_cf = self.implement.add(IMPLEMENT_NAME, IMPLEMENT_ADDRESS, "implement")

@@ -73,6 +73,8 @@ INBOX_POLL_S = 0.05
 KEY_REPEAT_S = 0.2
 """How often a held soft key or button is reported as still held."""
 PRIORITY = 5
+REQUEST_PGN = 0xEA00
+ADDRESS_CLAIMED_PGN = 0xEE00
 
 
 @dataclass(frozen=True)
@@ -203,6 +205,9 @@ class VirtualTerminalServer:
         self._now = 0.0
         #: actions posted from other threads (the browser VT), run at the next tick
         self._inbox: queue.SimpleQueue[Callable[[float], None]] | None = None
+        self._claims_requested = False
+        #: address -> when its claim was last asked for (a NAME the VT had not heard)
+        self._claim_asked: dict[int, float] = {}
         port.subscribe(ECU_TO_VT_PGN, self._on_message)
         port.subscribe(WORKING_SET_MASTER_PGN, self._on_working_set_master)
 
@@ -216,6 +221,11 @@ class VirtualTerminalServer:
         if self._inbox is not None:
             while not self._inbox.empty():
                 self._inbox.get_nowait()(now_s)
+        if not self._claims_requested:
+            # working sets that claimed before the VT was on the bus: their claims, so that
+            # their transfers are answered and their versions kept under their NAMEs
+            self._claims_requested = True
+            self._request_claims(GLOBAL_ADDRESS)
         while self._timers and self._timers[0].time_s <= now_s + 1e-9:
             heapq.heappop(self._timers).action(now_s)
         if self._next_status_s is None or now_s >= self._next_status_s - 1e-9:
@@ -276,6 +286,7 @@ class VirtualTerminalServer:
         self.sessions.clear()
         self._next_status_s = None
         self._timers.clear()
+        self._claims_requested = False
         self._down_until_s = now_s + down_s
         self._event(now_s, None, "restarted", f"down for {down_s:g} s")
 
@@ -316,10 +327,21 @@ class VirtualTerminalServer:
         name = self.port.name_of(address)
         return (name if name is not None else ("address", address)), name
 
+    def _request_claims(self, destination: int) -> None:
+        self.port.send(REQUEST_PGN, ADDRESS_CLAIMED_PGN.to_bytes(3, "little"), destination,
+                       PRIORITY + 1)
+
     def _session(self, address: int, time_s: float, why: str) -> WorkingSet:
         ws = self.sessions.get(address)
+        if ws is not None and ws.name is None:
+            key, name = self._key(address)      # its claim may have come since
+            if name is not None:
+                ws.key, ws.name = key, name
         if ws is None:
             key, name = self._key(address)
+            if name is None and time_s - self._claim_asked.get(address, -math.inf) >= 1.0:
+                self._claim_asked[address] = time_s
+                self._request_claims(address)
             ws = WorkingSet(address, key, name, time_s, time_s)
             self.sessions[address] = ws
             self._event(time_s, address, "connected",

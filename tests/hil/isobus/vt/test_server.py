@@ -189,3 +189,20 @@ def test_in_real_time_on_a_virtual_can_bus() -> None:
     assert client.state == "connected" and pressed.is_set()
     assert [(k.object_id, k.activation) for k in client.keys] == [
         (IDS.key_master, KeyActivation.PRESSED)]
+
+
+def test_a_vt_that_starts_after_the_implement_asks_for_its_claim() -> None:
+    """The implement claimed its address 2 s before the VT was on the bus: the VT asks for
+    the claims when it takes its address, so the implement's NAME is known and its transfer
+    answered (the network layer ignores transfers from addresses it never heard claim)."""
+    bench = VtBench([implement_pool().to_bytes()], version_label=b"LATE", vt_start_s=2.0)
+    bench.wire.nodes = [bench.implement]          # the VT is not on the bus yet
+    bench.run_until(2.0)
+    bench.wire.nodes.append(bench.rig)
+    bench.run_until(8.0)
+    assert bench.client is not None and bench.client.state == "connected"
+    ws = bench.vt.sessions[IMPLEMENT_ADDRESS]
+    assert ws.name is not None and ws.key == ws.name
+    requests = [f for f in bench.wire.frames if (f.frame.arbitration_id >> 8) & 0x3FF00
+                == 0xEA00 and f.frame.arbitration_id & 0xFF == VT_ADDRESS]
+    assert requests and bytes(requests[0].frame.data[:3]) == bytes([0x00, 0xEE, 0x00])
