@@ -36,11 +36,16 @@ class AttachedVt:
     browser: BrowserVt | None
     screens_dir: Path | None
 
-    def close(self) -> Path | None:
-        """Stop the browser page; write ``vt.json`` into the screens directory (its path)."""
+    def close(self, write: bool | None = None) -> Path | None:
+        """Stop the browser page; write ``vt.json`` into the screens directory (its path).
+
+        ``write=None``: only if the VT took its address (the network ran: a serve whose bus
+        could not be opened leaves nothing behind)."""
         if self.browser is not None:
             self.browser.stop()
-        if self.screens_dir is None:
+        if write is None:
+            write = self.vt.port.address is not None
+        if self.screens_dir is None or not write:
             return None
         self.screens_dir.mkdir(parents=True, exist_ok=True)
         path = self.screens_dir / "vt.json"
