@@ -35,20 +35,20 @@ if TYPE_CHECKING:
 __all__ = ["FmuDut", "FmuSection", "check_fmu", "fmu_path", "fmu_problems", "make_fmu_dut"]
 
 def fmu_path(profile: DutProfile, build: Path | None = None) -> Path:
-    """Where ``[fmu] path`` points (``build``: the build cache entry for ``{build_dir}``)."""
-    from hil.dut.build import build_dir, expand, resolve
+    """Where ``[fmu] path`` points (``build``: the build cache entry for ``{build_dir}``).
+
+    Absolute, or relative to the project root when there is such a file, else to the
+    profile's directory (as ``wiring.database``).
+    """
+    from hil.dut.build import build_dir, expand
+    from hil.dut.profile import database_path
 
     section = profile.fmu
     assert section is not None
     if "{build_dir}" in section.path and build is None and profile.build is not None:
         build = build_dir(profile)
     text = expand(section.path, profile, build=build)
-    target = resolve(text, profile)
-    if not target.is_absolute():
-        from hil.dut.profile import database_path
-
-        target = database_path(text, profile.path)
-    return target
+    return Path(text) if Path(text).is_absolute() else database_path(text, profile.path)
 
 
 Problem = tuple[str, str, str]   # key, message, fix
@@ -197,7 +197,10 @@ def fmu_problems(profile: DutProfile, path: Path | None = None) -> list[Problem]
         fmu = open_fmu(target)
     except ConfigError as exc:
         return [("fmu.path", str(exc).split(": ", 1)[-1] if exc.path else str(exc), "")]
-    out: list[Problem] = [("fmu.path", f"fmpy's validation: {p}", "") for p in validate(target)]
+    out: list[Problem] = [("fmu.path", f"fmpy's validation: {p}",
+                           "fix the FMU, or accept it: waive_validation = [\"<its start>\"]")
+                          for p in validate(target)
+                          if not any(p.startswith(w) for w in section.waive_validation)]
     if section.level == "bus":
         out += _bus_problems(profile, fmu)
     else:

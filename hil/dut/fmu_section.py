@@ -33,6 +33,10 @@ class FmuSection:
         ``Can_BusNotifications`` for an FMU that declares it.
     variables : dict of str to str, optional
         Signal level: FMU variable name → rig quantity (``quantity`` or ``quantity[row]``).
+    waive_validation : tuple of str, optional
+        fmpy's validation problems the profile accepts, each by the start of its text (an
+        FMU from elsewhere whose description fmpy judges stricter than its tools did); every
+        other problem refuses the FMU. Say why in a comment beside it.
     """
 
     path: str
@@ -40,6 +44,7 @@ class FmuSection:
     terminal: str = ""
     bus_notifications: bool = True
     variables: dict[str, str] = field(default_factory=dict)
+    waive_validation: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if not self.path:

@@ -22,6 +22,8 @@ profile never starts a run. Layout (``dut_profiles/<rig>-<controller>-<kind>.tom
                   applied to every run of this DUT (and recorded in each run's record)
     [campaign]    pass_probability, confidence: what a ``hil campaign`` must demonstrate;
                   sequential_good_probability, sequential_alpha: ``--sequential`` (Wald)
+    [fmu]         kind fmu only: path, level (bus|signal), terminal, bus_notifications,
+                  variables (FMU variable = rig quantity); see :mod:`hil.dut.fmu`
 
 In ``launch.command`` and ``build.command`` these placeholders are expanded: ``{python}``
 (this interpreter), ``{root}`` (the project root), ``{profile_dir}``, ``{build_dir}`` (the
@@ -43,6 +45,7 @@ from typing import Any, Literal
 from hil.condition_limits import ConditionCase, check_band, check_names
 from hil.config import check_positive, from_mapping, key_text
 from hil.dut.code_identity import code_identity, digest_sources, expand_placeholders
+from hil.dut.fmu_section import FmuSection
 from hil.dut.paths import PROJECT_ROOT, build_entry
 from hil.effective_limits import loosening
 from hil.errors import ConfigError
@@ -55,7 +58,7 @@ from hil.limits import (
 )
 from hil.validation import check_key
 
-Kind = Literal["firmware", "daemon", "inprocess", "physical"]
+Kind = Literal["firmware", "daemon", "inprocess", "physical", "fmu"]
 PROFILE_NAME = re.compile(r"^[a-z0-9]+(-[a-z0-9]+)*$")
 PLACEHOLDERS = ("python", "root", "profile_dir", "build_dir", "bus", "params")
 
@@ -70,9 +73,10 @@ class Identity:
         Lower-case words joined by ``-``; the profile's file name without ``.toml``.
     version : str
         The controller's version.
-    kind : {"firmware", "daemon", "inprocess", "physical"}
+    kind : {"firmware", "daemon", "inprocess", "physical", "fmu"}
         How the rig runs it: a built firmware process, a process, a Python object in the rig's
-        process, or an ECU on a physical bus the rig does not start.
+        process, an ECU on a physical bus the rig does not start, or a Functional Mock-up
+        Unit in the rig's process (``[fmu]``).
     rig : str
         The rig it is wired to.
     controller : str
@@ -370,6 +374,8 @@ class DutProfile:
         flow-sensor modules it is wired to), checked by the rig's own config loader.
     campaign : CampaignRequirement, optional
         ``[campaign]``: what ``hil campaign`` must demonstrate (None: no sample may fail).
+    fmu : FmuSection, optional
+        ``[fmu]`` (kind ``fmu`` only): the FMU and how it is wired (:mod:`hil.dut.fmu`).
     path : Path, optional
         The profile file (set by :func:`load_profile`).
     sha256 : str, optional
@@ -385,6 +391,7 @@ class DutProfile:
     limits: dict[str, Limit] = field(default_factory=dict)
     rig_config: dict[str, Any] = field(default_factory=dict)
     campaign: CampaignRequirement | None = None
+    fmu: FmuSection | None = None
     path: Path | None = None
     sha256: str = ""
 
@@ -481,8 +488,8 @@ def load_profile(path: str | Path) -> DutProfile:
     return DutProfile(dut=profile.dut, wiring=profile.wiring, timing=profile.timing,
                       launch=profile.launch, build=profile.build,
                       parameters=profile.parameters, limits=profile.limits,
-                      rig_config=rig_config, campaign=profile.campaign, path=path,
-                      sha256=hashlib.sha256(raw).hexdigest())
+                      rig_config=rig_config, campaign=profile.campaign, fmu=profile.fmu,
+                      path=path, sha256=hashlib.sha256(raw).hexdigest())
 
 
 #: a must-fail profile's registration line (docs/guide/suites.md, "The coverage rule")
@@ -686,6 +693,15 @@ def _check(profile: DutProfile, path: str) -> None:
     if ident.kind == "inprocess" and not launch.inprocess:
         raise ConfigError("an inprocess DUT needs launch.inprocess = 'module:Class'",
                           path=path, key="launch.inprocess")
+    if ident.kind == "fmu" and profile.fmu is None:
+        raise ConfigError("an fmu DUT needs an [fmu] section (path, level)", path=path,
+                          key="fmu")
+    if ident.kind != "fmu" and profile.fmu is not None:
+        raise ConfigError(f"[fmu] is for DUTs of kind fmu, this one is {ident.kind}",
+                          path=path, key="fmu")
+    if ident.kind == "fmu" and (launch.command or launch.inprocess):
+        raise ConfigError("an fmu DUT runs its FMU in the rig's process: remove "
+                          "launch.command and launch.inprocess", path=path, key="launch")
     if ident.kind == "physical" and (launch.command or profile.build):
         raise ConfigError("a physical DUT is not started by the rig: remove launch.command "
                           "and [build]", path=path, key="launch.command")

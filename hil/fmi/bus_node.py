@@ -13,8 +13,8 @@ lockstep they are the frames of the control period that SYNC opened). For each f
 3. a triggered ``Tx_Clock`` read before and after the update; when it ticked, ``Tx_Data``'s
    frames go on the rig's bus (:class:`hil.fmi.canbus.CanNodeBus` says what becomes of them).
 
-Notifications the bus owes the node are delivered with the next frame, so a node hears of its
-frame's confirmation when the bus carries the next one.
+Notifications the bus owes the node are delivered with the next frame; a frame is confirmed
+when the bus time moves on (the next SYNC) and no error frame destroyed it before.
 """
 
 from __future__ import annotations
@@ -122,10 +122,12 @@ class BusFmuController(Controller):
     # --- frames ----------------------------------------------------------------------------
     def on_frame(self, msg: can.Message) -> list[can.Message]:
         assert self.inst is not None, "on_frame before on_start"
-        if not msg.is_error_frame and not msg.is_extended_id and \
-                msg.arbitration_id == SYNC_ID:
+        sync = (not msg.is_error_frame and not msg.is_extended_id
+                and msg.arbitration_id == SYNC_ID)
+        if sync:
             self.bus_time = self.syncs * self.period_s
             self.syncs += 1
+            self.bus.time_advanced()
         out = self._advance(self.bus_time, msg)
         self.bus.from_bus(msg)
         out += self._deliver()

@@ -5,8 +5,8 @@ frames on the bus and answers with operations on ``Rx_Data``. :class:`CanNodeBus
 answer for one CAN terminal, on a **classic CAN** bus (the rig's):
 
 * **transmit** (0x10): the frame goes on the rig's bus. With ``BusNotifications`` true it is
-  **confirmed** (0x20) at the node's next ``Rx_Clock`` tick unless an error frame destroyed it
-  first; with ``BusNotifications`` false nothing comes back (fire and forget).
+  **confirmed** (0x20) when the bus time moves on (the next SYNC) unless an error frame
+  destroyed it first; with ``BusNotifications`` false nothing comes back (fire and forget).
 * **CAN FD / CAN XL transmit** (0x11, 0x12): refused (:class:`LsBusError`): the rig's bus is
   classic CAN.
 * **arbitration lost** (0x30): a frame the node makes ready at the bus time a rig frame is
@@ -49,6 +49,11 @@ ERROR_PASSIVE_LIMIT = 127
 BUS_OFF_LIMIT = 255
 
 
+_DELIVERED = {lsbus.CanTransmit: "frames", lsbus.Confirm: "confirm",
+              lsbus.ArbitrationLost: "arbitration_lost", lsbus.BusError: "bus_error",
+              lsbus.Status: "status"}
+
+
 class LsBusError(HilError, RuntimeError):
     """The node FMU sent an operation the rig's bus cannot carry or the node may not send."""
 
@@ -85,6 +90,8 @@ class CanNodeBus:
         "transmitted": 0, "confirmed": 0, "arbitration_lost": 0, "discarded": 0,
         "bus_errors": 0, "wakeups": 0, "dropped_bus_off": 0,
         "missed_bus_off": 0})
+    #: operations handed to the node, by kind (``confirm``, ``bus_error`` ...)
+    delivered: dict[str, int] = field(default_factory=dict)
     _unconfirmed: deque[int] = field(default_factory=deque)
     _to_node: list[Any] = field(default_factory=list)
 
@@ -178,6 +185,16 @@ class CanNodeBus:
                              f"discard and notify)")
 
     # --- from the bus ----------------------------------------------------------------------
+    def time_advanced(self) -> None:
+        """The bus time moves on (a SYNC): the node's frames that no error frame destroyed
+        meanwhile have been transmitted, and are confirmed.
+
+        Not at any frame: on a paced bus the frames the node hears right after sending were on
+        the wire before its own.
+        """
+        if self.status != lsbus.BUS_OFF:
+            self._confirm_all()
+
     def from_bus(self, msg: can.Message) -> None:
         """A frame of the rig's bus reaches the node (an error frame: a bus error).
 
@@ -189,7 +206,6 @@ class CanNodeBus:
         if msg.is_error_frame:
             self._bus_error()
             return
-        self._confirm_all()
         self._to_node.append(lsbus.CanTransmit(id=msg.arbitration_id, data=bytes(msg.data),
                                                ide=msg.is_extended_id, rtr=msg.is_remote_frame))
 
@@ -237,6 +253,10 @@ class CanNodeBus:
     def take(self) -> bytes:
         """The node's next ``Rx_Data`` (and forget it)."""
         ops, self._to_node = self._to_node, []
+        for op in ops:
+            name = _DELIVERED.get(type(op))
+            if name is not None:
+                self.delivered[name] = self.delivered.get(name, 0) + 1
         return lsbus.encode(ops)
 
     def record(self) -> dict[str, Any]:
@@ -249,4 +269,4 @@ class CanNodeBus:
                                               if self.arbitration_lost_behavior ==
                                               lsbus.DISCARD_AND_NOTIFY
                                               else "buffer and retransmit"),
-                **self.counts}
+                **self.counts, "delivered": dict(self.delivered)}

@@ -36,6 +36,54 @@ class FmuCallError(HilError, RuntimeError):
     """An FMI call failed; the message names the call and ends with the FMU's last log lines."""
 
 
+class _MissingFunction:
+    """Stands for an FMI function the FMU does not export: calling it is an error naming it."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self.argtypes: Any = None
+        self.restype: Any = None
+        self.argnames: Any = None
+
+    def __call__(self, *args: Any) -> Any:
+        raise FmuCallError(f"the FMU does not export {self.name}")
+
+
+class _LenientLibrary:
+    """The FMU's library as fmpy looks functions up in it, missing ones stood in for."""
+
+    def __init__(self, dll: Any) -> None:
+        self._dll = dll
+        self.missing: list[str] = []
+
+    def __getattr__(self, name: str) -> Any:
+        try:
+            return getattr(self._dll, name)
+        except AttributeError:
+            self.missing.append(name)
+            return _MissingFunction(name)
+
+
+def _lenient(cls: type) -> type:
+    """fmpy 0.3.32 loads every function the standard declares and fails on the first one a
+    library lacks, even one a co-simulation FMU need not export (FMI 3.0's
+    ``fmi3ActivateModelPartition``, say); this loads those present and names a missing one
+    only if it is called."""
+
+    class Lenient(cls):  # type: ignore[misc, valid-type]
+        def _loadFunctions(self) -> None:
+            real = self.dll
+            self.dll = _LenientLibrary(real)
+            try:
+                super()._loadFunctions()
+            finally:
+                self.missing_functions = self.dll.missing
+                self.dll = real
+
+    Lenient.__name__ = cls.__name__   # fmpy picks the fmi2/fmi3 prefix by the class name
+    return Lenient
+
+
 class FmuInstance:
     """An instantiated co-simulation FMU.
 
@@ -84,11 +132,11 @@ class FmuInstance:
                   "unzipDirectory": str(unzip), "instanceName": name}
         try:
             if self.fmi3:
-                slave = FMU3Slave(**kwargs)
+                slave = _lenient(FMU3Slave)(**kwargs)
                 slave.instantiate(eventModeUsed=event_mode, loggingOn=True,
                                   logMessage=self._logger3)
             else:
-                slave = FMU2Slave(**kwargs)
+                slave = _lenient(FMU2Slave)(**kwargs)
                 slave.instantiate(loggingOn=False)
         except Exception as exc:
             raise FmuCallError(self._text("instantiate", exc)) from exc

@@ -37,6 +37,7 @@ typedef enum {
     vr_baudrate = 12,
     vr_arbitration = 13,
     vr_wakeup_at_step = 14,
+    vr_crash_at_step = 15,
     vr_bus_notifications = 128,
     vr_time = 1024
 } ValueReference;
@@ -51,6 +52,7 @@ typedef struct {
     int32_t baudrate;
     int32_t arbitration;
     int32_t wakeup_at_step;
+    int32_t crash_at_step;
 } ModelData;
 
 #endif

@@ -5,7 +5,9 @@
  * (low byte), wake-ups, SYNCs seen (low byte). It is sent at every SYNC (0x080) it receives
  * (triggered Tx_Clock) or, built with PROBE_TIMED, at every tick of its time-based Tx_Clock.
  * Parameters: fd_at_step (send a CAN FD frame at that SYNC), baudrate and arbitration
- * (configuration operations at start; 0: none), wakeup_at_step (not used by the bus). */
+ * (configuration operations at start; 0: none), wakeup_at_step (not used by the bus),
+ * crash_at_step (abort() the process at that SYNC: a virtual ECU that crashes). */
+#include <stdlib.h>
 #include <string.h>
 
 #include "model.h"
@@ -38,6 +40,7 @@ Status setStartValues(ModelInstance *comp)
     M(baudrate) = 0;
     M(arbitration) = 0;
     M(wakeup_at_step) = 0;
+    M(crash_at_step) = 0;
     return OK;
 }
 
@@ -72,6 +75,9 @@ static void on_frame(void *ctx, const hal_can_frame_t *f)
         return;
     }
     M(syncs)++;
+    if (M(crash_at_step) > 0 && M(syncs) == M(crash_at_step)) {
+        abort();
+    }
     if (M(fd_at_step) > 0 && M(syncs) == M(fd_at_step)) {
         const uint8_t data[12] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12};
         lsbus_node_transmit_fd(&M(node), 0x1A1, data, sizeof data);
@@ -120,6 +126,7 @@ static int32_t *int_param(ModelInstance *comp, ValueReference vr)
     case vr_baudrate: return &M(baudrate);
     case vr_arbitration: return &M(arbitration);
     case vr_wakeup_at_step: return &M(wakeup_at_step);
+    case vr_crash_at_step: return &M(crash_at_step);
     default: return NULL;
     }
 }

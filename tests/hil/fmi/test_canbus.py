@@ -20,24 +20,31 @@ def ops(bus: CanNodeBus) -> list[lsbus.Operation]:
     return lsbus.decode(bus.take())
 
 
-def test_transmit_goes_on_the_bus_and_is_confirmed_with_the_next_frame() -> None:
+SYNC = can.Message(arbitration_id=0x080, data=b"", is_extended_id=False)
+
+
+def test_transmit_goes_on_the_bus_and_is_confirmed_when_the_bus_time_moves_on() -> None:
     bus = CanNodeBus("CanChannel", notifications=True)
     bus.start()
     assert ops(bus) == [lsbus.Status(lsbus.ERROR_ACTIVE)]
     [msg] = bus.from_node(lsbus.encode([lsbus.CanTransmit(0x1A0, b"\x01\x02")]))
     assert (msg.arbitration_id, bytes(msg.data), msg.is_extended_id) == (0x1A0, b"\x01\x02", False)
     assert not bus.pending()
-    bus.from_bus(frame(0x181, b"\xAA"))
-    assert ops(bus) == [lsbus.Confirm(0x1A0), lsbus.CanTransmit(0x181, b"\xAA")]
+    bus.from_bus(frame(0x181, b"\xAA"))      # heard right after: may have been on the wire first
+    assert ops(bus) == [lsbus.CanTransmit(0x181, b"\xAA")]
+    bus.time_advanced()
+    bus.from_bus(SYNC)
+    assert ops(bus) == [lsbus.Confirm(0x1A0), lsbus.CanTransmit(0x080, b"")]
 
 
 def test_without_notifications_nothing_but_frames_comes_back() -> None:
     bus = CanNodeBus("CanChannel", notifications=False)
     bus.from_node(lsbus.encode([lsbus.CanTransmit(0x300, b"")]))
     bus.from_bus(ERROR_FRAME)
-    bus.from_bus(frame(0x181))
-    assert ops(bus) == [lsbus.CanTransmit(0x181, b"\x01")]
-    assert bus.counts["bus_errors"] == 1
+    bus.time_advanced()
+    bus.from_bus(SYNC)
+    assert ops(bus) == [lsbus.CanTransmit(0x080, b"")]
+    assert bus.counts["bus_errors"] == 1 and bus.counts["confirmed"] == 0
 
 
 @pytest.mark.parametrize("op, kind", [
