@@ -88,3 +88,32 @@ def test_a_run_without_a_cut_writes_no_unheard_log(tmp_path: Path) -> None:
                        RunOptions(out_dir=tmp_path, bus="virtual", clock="lockstep"))
     assert not (tmp_path / "bus-unheard.log").exists()
     assert "unheard" not in run.record and "bus-unheard.log" not in run.record["artifacts"]
+
+
+def test_the_recorder_keeps_unheard_frames_apart(tmp_path: Path) -> None:
+    """The recorder's half on its own: a frame logged as unheard is in neither bus log, in
+    ``bus-unheard.log`` as sent (``T``), counted in the record, listed among the artifacts."""
+    from hil.record import Recorder
+
+    heard = can.Message(arbitration_id=0x302, is_extended_id=False, data=b"\x0f\x00\x01\x00")
+    lost = can.Message(arbitration_id=0x302, is_extended_id=False, data=b"\x0f\x00\xd5\xff")
+    status = can.Message(arbitration_id=0x18FF3080, data=bytes(8))
+    with Recorder(tmp_path, run_id="r") as rec:
+        rec.log_frame(heard, 1.0, rx=True)
+        rec.log_unheard(lost, 1.01)
+        rec.log_unheard(status, 1.01)
+        rec.log_unheard(lost, 1.02)
+        rec.log_frame(heard, 1.03, rx=True)
+    record = rec.final_record
+    logged = list(can.LogReader(tmp_path / "bus.log"))
+    assert [m.timestamp for m in logged] == [1.0, 1.03] and all(m.is_rx for m in logged)
+    assert sum(1 for m in can.LogReader(tmp_path / "bus.asc")) == 2
+    unheard = list(can.LogReader(tmp_path / "bus-unheard.log"))
+    assert [(m.timestamp, m.arbitration_id, m.is_rx) for m in unheard] == [
+        (1.01, 0x302, False), (1.01, 0x18FF3080, False), (1.02, 0x302, False)]
+    assert bytes(unheard[0].data) == b"\x0f\x00\xd5\xff"
+    assert record["unheard"] == {"frames": 3, "first_s": 1.01, "last_s": 1.02,
+                                 "ids": {"0x18FF3080": 1, "0x302": 2},
+                                 "file": "bus-unheard.log"}
+    assert record["artifacts"] == ["record.json", "bus.log", "bus.asc", "bus-unheard.log",
+                                   "traces.npz"]
