@@ -73,6 +73,13 @@ def try_instance(plan: RigPlan) -> None:
         plant.close()
 
 
+def _source(spec: object) -> str:
+    fmu, inp = getattr(spec, "fmu", ""), getattr(spec, "input", "")
+    if fmu or inp:
+        return str(fmu or inp)
+    return "counter" if getattr(spec, "counter", False) else f"{getattr(spec, 'value', 0.0):g}"
+
+
 def check_rig_file(path: str | Path) -> CheckReport:
     """Check a rig file completely (see the module); the summary of a file that passes.
 
@@ -98,8 +105,7 @@ def check_rig_file(path: str | Path) -> CheckReport:
     for m in plan.sent:
         period = f"every {m.period_s * 1000:g} ms" if m.period_s else "on change"
         lines.append(f"  {m.device} sends {m.message} (0x{m.frame_id:X}) {period}: "
-                     + ", ".join(f"{s.signal} <- {s.spec.fmu or s.spec.input or 'counter'}"
-                                 for s in m.sent))
+                     + ", ".join(f"{s.signal} <- {_source(s.spec)}" for s in m.sent))
     for m in plan.received:
         lines.append(f"  {m.device} takes {m.message} (0x{m.frame_id:X}): "
                      + ", ".join(f"{r.signal} -> {r.target.text}" for r in m.received))

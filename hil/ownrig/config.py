@@ -84,9 +84,10 @@ class SentSignal:
     Exactly one source: ``fmu`` (an FMU output or local, through the sensor model), ``input``
     (a scenario input, sent as it is: a terminal's set-point), ``counter`` (a rolling counter,
     +1 per frame) or ``value`` (a constant). The sensor model, applied in this order to an FMU
-    value: ``delay_ms`` (the value that long ago), ``hold_ms`` (sample-and-hold: a new sample
-    every so often), ``gain`` and ``offset``, ``noise_sd`` (Gaussian, from the run's seeded
-    generator), ``quantum`` (rounding to a multiple).
+    value: ``delay_ms`` (the value that long ago), ``rate_window_ms`` (the rate of change over
+    that window, per second: a flow from a cumulative mass), ``hold_ms`` (sample-and-hold: a
+    new sample every so often), ``gain`` and ``offset``, ``noise_sd`` (Gaussian, from the
+    run's seeded generator), ``quantum`` (rounding to a multiple).
     """
 
     fmu: str = ""
@@ -101,12 +102,13 @@ class SentSignal:
     quantum: float = 0.0
     delay_ms: float = 0.0
     hold_ms: float = 0.0
+    rate_window_ms: float = 0.0
 
     def __post_init__(self) -> None:
         sources = sum((bool(self.fmu), bool(self.input), self.counter, self.value is not None))
         if sources != 1:
             raise ConfigError("give exactly one source: fmu, input, counter or value")
-        for name in ("noise_sd", "quantum", "delay_ms", "hold_ms"):
+        for name in ("noise_sd", "quantum", "delay_ms", "hold_ms", "rate_window_ms"):
             _non_negative(getattr(self, name), name)
         if self.quantity and not _NAME.match(self.quantity):
             raise ConfigError(f"quantity names are lower_snake_case, got {self.quantity!r}",
@@ -266,6 +268,11 @@ class ControlledSpec:
     profile: tuple[tuple[float, float], ...] = ()
     fault_at_s: float = 5.0
     fault_duration_s: float = 2.0
+    #: the smoothing of the truth and the sensed value before they are judged: a running
+    #: median or mean over ``filter_s`` (a mean over a ripple's period removes it: a meter's
+    #: flute pulsation), or none
+    filter: Literal["median", "mean", "none"] = "median"
+    filter_s: float = 0.2
     limits: Limits = field(default_factory=Limits)
 
     def __post_init__(self) -> None:
@@ -273,6 +280,7 @@ class ControlledSpec:
         _positive(self.step_duration_s, "step_duration_s")
         _positive(self.steady_window_s, "steady_window_s")
         _positive(self.fault_duration_s, "fault_duration_s")
+        _positive(self.filter_s, "filter_s")
         _non_negative(self.step_at_s, "step_at_s")
         _non_negative(self.fault_at_s, "fault_at_s")
         if not self.steps:

@@ -210,22 +210,35 @@ class FmuPlant:
                 self._set_any(variable, items)
             self.fmu.enterInitializationMode()
         self.fmu.exitInitializationMode()
-        # outputs grouped by variable: one get call per variable, each element picked
-        self._reads: list[tuple[int, int, str, list[tuple[int, int]]]] = []
+        # what is read after each step: the scalars of one type in one call, each array in one
         self._slots: dict[str, int] = {}
-        by_vr: dict[int, tuple[int, str, list[tuple[int, str]]]] = {}
+        scalars: dict[str, list[tuple[int, str]]] = {}
+        arrays: dict[int, tuple[int, str, list[tuple[int, str]]]] = {}
         for ref in outputs:
-            size, kind, items = by_vr.setdefault(ref.value_reference, (ref.size, ref.type, []))
-            if all(text != ref.text for _, text in items):
-                items.append((ref.index, ref.text))
+            if ref.text in self._slots:
+                continue
+            self._slots[ref.text] = -1
+            if ref.size == 1:
+                scalars.setdefault(ref.type, []).append((ref.value_reference, ref.text))
+            else:
+                arrays.setdefault(ref.value_reference, (ref.size, ref.type, []))[2].append(
+                    (ref.index, ref.text))
+        self._scalar_reads: list[tuple[str, list[int], list[int]]] = []
+        self._array_reads: list[tuple[int, int, str, list[tuple[int, int]]]] = []
         slot = 0
-        for vr, (size, kind, items) in by_vr.items():
-            indices = []
+        for kind, items in scalars.items():
+            slots = list(range(slot, slot + len(items)))
+            for (_, text), i in zip(items, slots, strict=True):
+                self._slots[text] = i
+            self._scalar_reads.append((kind, [vr for vr, _ in items], slots))
+            slot += len(items)
+        for vr, (size, kind, items) in arrays.items():
+            picks = []
             for index, text in items:
                 self._slots[text] = slot
-                indices.append((index, slot))
+                picks.append((index, slot))
                 slot += 1
-            self._reads.append((vr, size, kind, indices))
+            self._array_reads.append((vr, size, kind, picks))
         self._values = [0.0] * slot
         self._fresh = False
 
@@ -276,14 +289,16 @@ class FmuPlant:
         if not self._fresh:
             out = self._values
             v3, fmu = self.v3, self.fmu
-            for vr, size, kind, indices in self._reads:
-                if v3:
-                    got = (fmu.getFloat32 if kind == "Float32" else fmu.getFloat64)(
-                        [vr], nValues=size)
-                else:
-                    got = fmu.getReal([vr])
-                for index, slot in indices:
-                    out[slot] = float(got[index])
+            for kind, vrs, slots in self._scalar_reads:
+                got = ((fmu.getFloat32 if kind == "Float32" else fmu.getFloat64)(vrs)
+                       if v3 else fmu.getReal(vrs))
+                for i, value in zip(slots, got, strict=True):
+                    out[i] = float(value)
+            for vr, size, kind, picks in self._array_reads:
+                got = (fmu.getFloat32 if kind == "Float32" else fmu.getFloat64)([vr],
+                                                                               nValues=size)
+                for index, i in picks:
+                    out[i] = float(got[index])
             self._fresh = True
         return self._values
 

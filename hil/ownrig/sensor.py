@@ -1,8 +1,10 @@
 """The sensor model between an FMU output and the signal a device sends.
 
 Applied in this order: delay (the value ``delay_ms`` ago, from the per-step history the rig
-keeps), sample-and-hold (a new sample only every ``hold_ms``), gain and offset, Gaussian noise
-(from a stream of the run's seeded generator), quantisation (to a multiple of ``quantum``).
+keeps), rate over a window (``(x(t) - x(t - w)) / w``: a flow from a cumulative mass, as a
+windowed flow sensor reports it), sample-and-hold (a new sample only every ``hold_ms``), gain
+and offset, Gaussian noise (from a stream of the run's seeded generator), quantisation (to a
+multiple of ``quantum``).
 Everything is a function of the run's time and seed: two runs with one seed send the same.
 """
 
@@ -31,6 +33,7 @@ class SensorModel:
         self.gain, self.offset = spec.gain, spec.offset
         self.noise_sd, self.quantum = spec.noise_sd, spec.quantum
         self.delay_s, self.hold_s = spec.delay_ms / 1000.0, spec.hold_ms / 1000.0
+        self.window_s = spec.rate_window_ms / 1000.0
         self.rng = rng
         #: (time, value) of the source, oldest first (only with a delay)
         self.history: deque[tuple[float, float]] = deque()
@@ -39,25 +42,35 @@ class SensorModel:
 
     @property
     def needs_history(self) -> bool:
-        return self.delay_s > 0
+        return self.delay_s > 0 or self.window_s > 0
 
     def record(self, time_s: float, value: float) -> None:
-        """Keep the source's value at ``time_s`` (called every physics step with a delay)."""
+        """Keep the source's value at ``time_s`` (every physics step, for a delay or window)."""
         self.history.append((time_s, value))
 
-    def _delayed(self, time_s: float, value: float) -> float:
-        want = time_s - self.delay_s + 1e-12
+    def _at(self, when: float, value: float) -> float:
+        """The source at ``when`` (its last value at or before), from the newest back."""
         history = self.history
-        while len(history) > 1 and history[1][0] <= want:
+        for t, v in reversed(history):
+            if t <= when + 1e-12:
+                return v
+        return history[0][1] if history else value   # before the history: its first value
+
+    def _prune(self, oldest: float) -> None:
+        history = self.history
+        while len(history) > 1 and history[1][0] <= oldest + 1e-12:
             history.popleft()
-        if history and history[0][0] <= want:
-            return history[0][1]
-        return history[0][1] if history else value   # before the first delay: the start
 
     def sample(self, time_s: float, value: float) -> float:
         """The signal's value at ``time_s`` when the source reads ``value`` now."""
-        if self.delay_s > 0:
-            value = self._delayed(time_s, value)
+        if self.delay_s > 0 or self.window_s > 0:
+            now = time_s - self.delay_s
+            self._prune(now - self.window_s)
+            latest = self._at(now, value)
+            # over the window: from the value at its start (the first one while the run is
+            # younger than the window, as a sensor that sums from power-up)
+            first = self.history[0][1] if self.history else value
+            value = (latest - first) / self.window_s if self.window_s > 0 else latest
         if self.hold_s > 0:
             if time_s + 1e-12 >= self._next_sample:
                 self._held = value

@@ -90,7 +90,11 @@ def variables(config: FertilizerRigConfig, draws: RunDraws, seed: int) -> list[V
            Variable("shaft_speed_rpm", "output", "rpm", "meter-shaft speed"),
            Variable("motor_current_a", "output", "A", "motor current"),
            Variable("delivered_total_g", "output", "g", "grams delivered at the tube exits, all "
-                    "rows (the truth)")]
+                    "rows (the truth)"),
+           Variable("flow_at_meter_mean_gps", "output", "g/s", "flow leaving the rollers, mean "
+                    "of the rows"),
+           Variable("metered_total_g", "output", "g", "grams that left the rollers, all rows "
+                    "(delivered plus in the tubes: what a scale weighs after the run)")]
     for name, unit, what in (("flow_at_meter_{}_gps", "g/s", "flow leaving roller {}"),
                              ("flow_at_sensor_{}_gps", "g/s", "flow passing row {}'s sensor"),
                              ("delivered_{}_g", "g", "grams delivered at row {}'s tube exit"),

@@ -33,6 +33,21 @@ def traces(result: Any, c: ControlledPlan) -> tuple[np.ndarray, np.ndarray, np.n
             arrays[trace_name("sensed", c.sensed)])
 
 
+def filter_args(c: ControlledPlan) -> dict[str, Any]:
+    """The step metrics' smoothing the rig file asks for (``filter``, ``filter_s``)."""
+    return {"filter_kind": c.spec.filter, "filter_s": c.spec.filter_s}
+
+
+def smoothed(t: np.ndarray, y: np.ndarray, c: ControlledPlan) -> np.ndarray:
+    """``y`` smoothed as the step metrics smooth it (for the errors judged outside them)."""
+    from hil.metrics.step import smooth
+
+    if c.spec.filter == "none" or len(t) < 2:
+        return y
+    samples = max(1, round(c.spec.filter_s / float(np.median(np.diff(t)))))
+    return smooth(y, samples, c.spec.filter)
+
+
 class Recorder:
     """Records ``<rig>.<quantity>.<suffix>`` measurements; a limit taken from the rig file is
     recorded with that source (the catalogue's default of a rig of your own is its file's)."""

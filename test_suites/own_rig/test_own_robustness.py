@@ -11,7 +11,7 @@ import pytest
 
 from hil.metrics import judged_recovery, recovery_time
 from hil.ownrig.scenarios import FAULT_KINDS, fault_scenario
-from test_suites.own_rig.judge import Recorder, own_plan, traces
+from test_suites.own_rig.judge import Recorder, own_plan, smoothed, traces
 
 
 @pytest.mark.hil_suite("robustness")
@@ -26,6 +26,7 @@ def test_fault(hil_rig, hil_run, hil_measure, hil_session, kind: str) -> None:
         t, _, truth, _ = traces(result, c)
         target = spec.steps[0]
         after = t >= spec.fault_at_s
+        truth = smoothed(t, truth, c)
         deviation = float(np.max(np.abs(truth[after] - target)))
         record(c, f"fault.{kind}.deviation", deviation, run=result, scenario=scenario.name,
                fault=kind)

@@ -8,7 +8,7 @@ import pytest
 
 from hil.metrics import judged_recovery, step_response
 from hil.ownrig.scenarios import step_scenario
-from test_suites.own_rig.judge import Recorder, own_plan, traces
+from test_suites.own_rig.judge import Recorder, filter_args, own_plan, traces
 
 
 @pytest.mark.hil_suite("fast")
@@ -23,7 +23,7 @@ def test_step_response(hil_rig, hil_run, hil_measure, hil_session) -> None:
             t, _, truth, sensed = traces(result, c)
             band = c.band / abs(target - spec.start)
             m = step_response(t, truth, t0=spec.step_at_s, target=target, y0=spec.start,
-                              band=band, steady_window_s=spec.steady_window_s)
+                              band=band, steady_window_s=spec.steady_window_s, **filter_args(c))
             response, never = judged_recovery(m.response_time_s, t, t0=spec.step_at_s,
                                               band=band)
             record(c, "step.response_time", response, run=result, scenario=scenario.name,
@@ -33,7 +33,7 @@ def test_step_response(hil_rig, hil_run, hil_measure, hil_session) -> None:
                    run=result, scenario=scenario.name,
                    note=f"true value {m.steady_state_value:.4g} {c.unit}")
             s = step_response(t, sensed, t0=spec.step_at_s, target=target, y0=spec.start,
-                              band=band, steady_window_s=spec.steady_window_s)
+                              band=band, steady_window_s=spec.steady_window_s, **filter_args(c))
             record(c, "step.sensed_steady_state_error", abs(s.steady_state_value - target),
                    run=result, scenario=scenario.name,
                    note=f"sensed value {s.steady_state_value:.4g} {c.unit}")

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from hil.ownrig.scenarios import tracking_scenario
-from test_suites.own_rig.judge import Recorder, own_plan, traces
+from test_suites.own_rig.judge import Recorder, own_plan, smoothed, traces
 
 
 @pytest.mark.hil_suite("fast")
@@ -24,7 +24,7 @@ def test_tracking(hil_rig, hil_run, hil_measure, hil_session) -> None:
         t, setpoint, truth, _ = traces(result, c)
         start = c.spec.profile[1][0] if len(c.spec.profile) > 1 else c.spec.profile[0][0]
         window = t >= start
-        error = truth[window] - setpoint[window]
+        error = smoothed(t, truth, c)[window] - setpoint[window]
         record(c, "tracking.rms_error", float(np.sqrt(np.mean(error ** 2))), run=result,
                scenario=scenario.name, note=f"judged from {start:g} s")
         record(c, "tracking.max_error", float(np.max(np.abs(error))), run=result,

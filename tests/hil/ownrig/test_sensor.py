@@ -46,3 +46,14 @@ def test_noise_is_seeded_and_of_its_size() -> None:
     values = np.array([s.sample(0.0, 10.0) for _ in range(4000)])
     assert values.mean() == pytest.approx(10.0, abs=0.05)
     assert values.std() == pytest.approx(0.5, rel=0.05)
+
+
+def test_rate_over_a_window_of_a_cumulative_value() -> None:
+    s = sensor(rate_window_ms=100.0)
+    for k in range(301):                  # 2 g per ms: 2000 g/s
+        s.record(k * 0.001, 2.0 * k)
+    assert s.sample(0.3, 600.0) == pytest.approx(2000.0)
+    young = sensor(rate_window_ms=100.0)
+    for k in range(51):
+        young.record(k * 0.001, 2.0 * k)
+    assert young.sample(0.05, 100.0) == pytest.approx(1000.0)   # half a window summed so far

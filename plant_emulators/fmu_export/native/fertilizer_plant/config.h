@@ -34,6 +34,7 @@ typedef enum {
     vr_command_v,
     /* outputs */
     vr_motor_speed_rpm, vr_shaft_speed_rpm, vr_motor_current_a, vr_delivered_total_g,
+    vr_flow_at_meter_mean_gps, vr_metered_total_g,
     vr_flow_at_meter_1_gps, vr_flow_at_meter_2_gps, vr_flow_at_meter_3_gps,
     vr_flow_at_meter_4_gps,
     vr_flow_at_sensor_1_gps, vr_flow_at_sensor_2_gps, vr_flow_at_sensor_3_gps,

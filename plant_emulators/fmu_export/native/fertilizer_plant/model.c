@@ -245,6 +245,20 @@ static double output(ModelInstance *comp, ValueReference vr)
         }
         return sum;
     }
+    case vr_metered_total_g: {
+        double sum = 0.0;
+        for (int r = 0; r < ROWS; r++) {
+            sum += pc->metered[r] * pc->dt;
+        }
+        return sum;
+    }
+    case vr_flow_at_meter_mean_gps: {
+        double sum = 0.0;
+        for (int r = 0; r < ROWS; r++) {
+            sum += pc->flow_at_meter[r];
+        }
+        return sum / ROWS;
+    }
     default:
         break;
     }
