@@ -20,8 +20,8 @@ from hil.report.markup import relative_href
 from hil.report.record import MeasurementRow, QualRecord, RunRef
 
 #: the artifacts listed first in the runs table, in this order
-KNOWN_ARTIFACTS = ("record.json", "bus.log", "bus.asc", "bus.blf", "traces.npz", "traces.csv",
-                   "truth.npz", "stdout.log", "stderr.log", "plot.png")
+KNOWN_ARTIFACTS = ("record.json", "bus.log", "bus.asc", "bus-unheard.log", "bus.blf",
+                   "traces.npz", "traces.csv", "truth.npz", "stdout.log", "stderr.log", "plot.png")
 
 
 @dataclass

@@ -121,6 +121,7 @@ class _Loop:
                                    on_send=self._on_sync_sent)
         self.clock.add_participant(self.barrier)
         self._log_frame = rec.log_frame
+        self._log_unheard = rec.log_unheard
         self._now = self.clock.now
         #: False without bus log files (a campaign's measurements-only sample): the recorder
         #: would drop every frame, so they are not handed to it (~570,000 calls, ~0.6 s of CPU
@@ -191,20 +192,28 @@ class _Loop:
         if is_step_end(msg):    # bench control (lockstep's barrier reads it), not traffic
             self.barrier.step_ends += 1
             return
-        self.frames_rx += 1
+        foreign = msg.arbitration_id in self.foreign_ids and msg.is_extended_id
+        # a frame a fault keeps from the rig (a cut wire: Rig.admits) was never received: it
+        # is logged apart (bus-unheard.log), not in the bus logs, and reaches no node
+        heard = foreign or msg.is_error_frame or self.rig.admits(msg)
+        if heard:
+            self.frames_rx += 1
         if self._logging:
-            self._log_frame(msg, self._now(), rx=True)
+            if heard:
+                self._log_frame(msg, self._now(), rx=True)
+            else:
+                self._log_unheard(msg, self._now())
         if msg.arbitration_id in self.command_ids:
             self.last_command_s = self.clock.time_s
             self._commanded = True
-        if msg.arbitration_id in self.foreign_ids and msg.is_extended_id:
+        if foreign:
             return  # another node's traffic (bus load): logged, neither rig's nor DUT's
         if self._flood_limit is not None:
             self._count_for_flood(msg)
         if msg.is_error_frame:
             self.rig.ctx.note(self.clock.time_s, "bus-error", "error frame received")
             return
-        if not self.rig.admits(msg):
+        if not heard:
             return
         t = self.clock.time_s
         for i, device in enumerate(self.rig.devices):

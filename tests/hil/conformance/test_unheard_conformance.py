@@ -13,7 +13,7 @@ import numpy as np
 from hil.conformance import run_conformance
 from hil.conformance.framelog import FrameLog
 from tests.hil.conformance.test_checks import _good_power_up, _synthetic
-from tests.hil.record.test_unheard_frames import CUT, WAITS_FOR_THE_RUNNER, _cut_wire_run
+from tests.hil.record.test_unheard_frames import CUT, _cut_wire_run
 
 ROOT = Path(__file__).resolve().parents[3]
 CUT_S = (1.0, 2.0)
@@ -92,7 +92,6 @@ def test_a_sync_answered_by_a_frame_nobody_heard_has_no_latency() -> None:
     assert got[("bus.sync_latency.max", None)].value > 900
 
 
-@WAITS_FOR_THE_RUNNER
 def test_a_cut_wire_run_of_the_fertilizer_rig(tmp_path: Path) -> None:
     from hil.dut.profile import load_profile
 

@@ -41,19 +41,10 @@ def _cut_wire_run(rig: str, out: Path):
                         RunOptions(out_dir=out, bus="virtual", clock="lockstep"))
 
 
-#: the runner's half (hil/rig/runner.py, _Loop.intake: a frame Rig.admits refuses goes to
-#: Recorder.log_unheard, not to the bus logs) is in H4's report: remove this marker when it is
-#: applied
-WAITS_FOR_THE_RUNNER = pytest.mark.xfail(
-    strict=True, reason="waits for the runner edit in H4's report (frames Rig.admits refuses "
-                        "to Recorder.log_unheard): remove this marker when it is applied")
-
-
 def _in_cut(time_s: np.ndarray) -> np.ndarray:
     return (time_s >= CUT[0]) & (time_s < CUT[1])
 
 
-@WAITS_FOR_THE_RUNNER
 @pytest.mark.parametrize("rig", sorted(RIGS))
 def test_frames_lost_to_a_cut_wire_are_not_logged_as_received(rig: str, tmp_path: Path) -> None:
     run = _cut_wire_run(rig, tmp_path)
