@@ -139,6 +139,7 @@ class OwnRig(Rig):
         self._history = [(s, self.plant.slot(ref.text)) for q, s in self.sensors.items()
                          for m in plan.sent for x in m.sent if x.quantity == q
                          for ref in (x.source,) if ref is not None and s.needs_history]
+        self._every_step = any(s.needs_every_step for s, _ in self._history)
         self.nodes: dict[str, Any] = {}
         for name, device in spec.devices.items():
             if name in plan.loaded.eds:
@@ -176,6 +177,13 @@ class OwnRig(Rig):
     def advance(self, n: int, dt: float) -> None:
         if not self._history:
             self.plant.advance(n, dt)
+            return
+        if not self._every_step:      # windows only: their past at the rig's event times
+            self.plant.advance(n, dt)
+            values = self.plant.values()
+            t = self.plant.time_s
+            for sensor, slot in self._history:
+                sensor.record(t, values[slot])
             return
         for _ in range(n):
             self.plant.advance(1, dt)

@@ -42,7 +42,14 @@ class SensorModel:
 
     @property
     def needs_history(self) -> bool:
+        """The sensor reads its source's past (a delay or a window)."""
         return self.delay_s > 0 or self.window_s > 0
+
+    @property
+    def needs_every_step(self) -> bool:
+        """Its past is needed at every physics step (a delay); a window alone reads its start
+        from the rig's event times (at least every trace period), where its frames are sent."""
+        return self.delay_s > 0
 
     def record(self, time_s: float, value: float) -> None:
         """Keep the source's value at ``time_s`` (every physics step, for a delay or window)."""
