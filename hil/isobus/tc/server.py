@@ -505,7 +505,7 @@ class TaskControllerServer:
                          else f"moved to 0x{msg.source:02X}")
                 self._end_session(session, msg.time_s, EventKind.SESSION_ENDED,
                                   f"the client's NAME {claimant:016X} {where}")
-        self._watch_address(msg.time_s, claimant)
+        self._watch_address(msg.time_s, claimant if msg.source == self._held else None)
 
     def _watch_address(self, now_s: float, claimant: int | None = None) -> None:
         """Say when the TC's own address is lost or held again; a lost one ends every
@@ -514,14 +514,16 @@ class TaskControllerServer:
         if address == self._held:
             return
         if self._held is not None:
-            who = f" to NAME {claimant:016X}" if claimant is not None else ""
             for session in list(self.sessions.values()):
                 self._end_session(session, now_s, EventKind.SESSION_ENDED,
-                                  f"the TC lost its address 0x{self._held:02X}")
-            self._event(now_s, None, EventKind.ADDRESS_LOST,
-                        f"the TC lost 0x{self._held:02X}{who} (a lower NAME wins, ISO "
-                        f"11783-5); " + ("it claims another" if address is None
-                                         else f"it holds 0x{address:02X}"))
+                                  f"the TC no longer holds its address 0x{self._held:02X}")
+            if claimant is not None:
+                self._event(now_s, None, EventKind.ADDRESS_LOST,
+                            f"the TC lost 0x{self._held:02X} to NAME {claimant:016X} (a lower "
+                            f"NAME wins, ISO 11783-5); " + (
+                                "it claims another" if address is None
+                                else f"it holds 0x{address:02X}"))
+            # else its own claim started again (a power cycle): no one took the address
             self._next_status_s = None      # its status goes out at once from the new one
         self._held = address
         if address is not None:

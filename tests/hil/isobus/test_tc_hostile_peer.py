@@ -143,3 +143,14 @@ def test_the_tc_that_loses_its_address_says_so_moves_and_its_client_follows() ->
     session = tc.sessions.get(IMPLEMENT_ADDRESS)
     assert session is not None and session.pool is not None and session.connected_s > 4.0
     assert b.clients[0].connected
+
+
+def test_a_tc_that_claims_its_address_again_after_a_power_cycle_lost_nothing() -> None:
+    # the rigs' tc_down fault: the TC's claim starts again; no one took 0xF7, so no "address
+    # lost", and it holds 0xF7 again 250 ms later
+    b = bench()
+    b.wire.run_until(3.0)
+    b.tractor.tc_function.claimer.start(3.0)
+    b.wire.run_until(5.0)
+    kinds = [(e.time_s, e.kind) for e in b.tractor.tc.events]
+    assert kinds == [(0.25, EventKind.ADDRESS_CLAIMED), (3.25, EventKind.ADDRESS_CLAIMED)]
