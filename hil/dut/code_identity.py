@@ -153,6 +153,7 @@ def _git(cwd: Path, *args: str) -> str | None:
     return done.stdout if done.returncode == 0 else None
 
 
+@functools.lru_cache(maxsize=64)
 def _git_top(directory: Path) -> Path | None:
     out = _git(directory, "rev-parse", "--show-toplevel") if directory.is_dir() else None
     return Path(out.strip()) if out else None
@@ -162,9 +163,16 @@ def git_state(paths: Sequence[Path]) -> dict[str, Any] | None:
     """The git revision of ``paths`` and whether they differ from it.
 
     The work tree is the first path's; ``dirty`` when any of ``paths`` is modified, staged or
-    untracked. None outside a work tree.
+    untracked. None outside a work tree. Asked once per process and set of paths (a
+    qualification names the code it started with; every run's record asks again).
     """
-    existing = [p.resolve() for p in paths if p.exists()]
+    state = _git_state(tuple(str(p.resolve()) for p in paths if p.exists()))
+    return dict(state) if state is not None else None
+
+
+@functools.lru_cache(maxsize=32)
+def _git_state(resolved: tuple[str, ...]) -> dict[str, Any] | None:
+    existing = [Path(p) for p in resolved]
     if not existing:
         return None
     first = existing[0] if existing[0].is_dir() else existing[0].parent
@@ -257,6 +265,16 @@ def code_identity(*, kind: str, argv: Sequence[str], inprocess: str = "",
 
 #: directories of a source tree left out of its hash
 SKIP_PARTS = {"build", ".git", "__pycache__"}
+
+
+@functools.lru_cache(maxsize=16)
+def identity_digest(command: tuple[str, ...], roots: tuple[Path, ...]) -> str:
+    """:func:`digest_sources`, once per process.
+
+    What the record's identity names; the build itself always hashes afresh
+    (:func:`hil.dut.build.source_sha256`).
+    """
+    return digest_sources(command, roots)
 
 
 def digest_sources(command: Sequence[str], roots: Sequence[Path]) -> str:

@@ -44,7 +44,7 @@ from typing import Any, Literal
 
 from hil.condition_limits import ConditionCase, check_band, check_names
 from hil.config import check_positive, from_mapping, key_text
-from hil.dut.code_identity import code_identity, digest_sources, expand_placeholders
+from hil.dut.code_identity import code_identity, expand_placeholders, identity_digest
 from hil.dut.fmu_section import FmuSection
 from hil.dut.paths import PROJECT_ROOT, build_entry
 from hil.effective_limits import loosening
@@ -431,7 +431,7 @@ class DutProfile:
             sources = [_rooted(expand_placeholders(src, profile_dir=where))
                        for src in sorted(self.build.sources)]
             if all(src.exists() for src in sources):
-                digest = digest_sources(self.build.command, sources)
+                digest = identity_digest(tuple(self.build.command), tuple(sources))
                 build = build_entry(digest)
         argv = [expand_placeholders(a, profile_dir=where, build=build)
                 for a in self.launch.command if a != "{params}"]

@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from hil.cli.main import main
+from hil.dut import code_identity
 from hil.dut.build import ensure_built
 from hil.dut.code_identity import program_of
 from hil.dut.profile import load_profile
@@ -84,8 +85,12 @@ def test_a_daemons_identity_names_its_script_and_git_state(tmp_path: Path) -> No
     assert code["program"]["path"] == "controller.py"         # relative to its work tree
     assert code["git"] == {"revision": _git(repo, "rev-parse", "HEAD"), "dirty": False}
     script.write_text(script.read_text(encoding="utf-8") + "\n# changed\n", encoding="utf-8")
-    changed = profile.identity()["code"]
-    assert changed["git"]["dirty"] is True and changed["program"]["sha256"] == _sha(script)
+    # the program's hash follows the file at once; the git state is taken once per process
+    # (a qualification names the tree it started from), so a new process sees it dirty
+    assert profile.identity()["code"]["program"]["sha256"] == _sha(script)
+    assert profile.identity()["code"]["git"]["dirty"] is False
+    code_identity._git_state.cache_clear()
+    assert profile.identity()["code"]["git"]["dirty"] is True
 
 
 def test_outside_a_work_tree_there_is_no_git_state(tmp_path: Path) -> None:
