@@ -244,11 +244,11 @@ _TRUE_DEPTH_STEADY_STATE_LIMIT_MM = 3.0
 #: and loosening one states its reason in the profile (docs/guide/dut-profiles.md).
 
 #: flow.step.response_time, from [F]'s step tests (23, 34, 44 g/s on the bench): flow control
-#: settled in 1.42 s at worst (0.98 s mean); 1.5 s is that worst, rounded up. On the true flow,
-#: so it holds whatever the flow modules report; with modules reporting once per second ([F]'s
-#: block report, the rig's default flow_sensor mode) no controller settles below ~2 s
-#: (papers: the 1 s window must slide to reach [F]'s 0.98 s): an installation with such
-#: modules loosens this limit and says so.
+#: settled in 1.42 s at worst (0.98 s mean); 1.5 s is that worst, rounded up. On the true flow:
+#: a feedforward from the meter map reaches it whatever the flow modules report, while a loop on
+#: the reported flow alone cannot with modules reporting once per second ([F]'s block report,
+#: the rig's default flow_sensor mode: ~2 s at best; the 1 s window must slide for [F]'s
+#: 0.98 s).
 _RESPONSE_LIMIT_S = 1.5
 #: flow.step.overshoot, from [F]: flow control overshot 3.49 % at worst (2.82 % mean), the
 #: constant-speed baseline 5.45 % at best (8.85 % mean): 5 % lies between the two.
