@@ -15,6 +15,12 @@ prints, per DUT, the median wall time, the median CPU time of this process and i
 simulated-to-wall ratio, and whether every run's bus log was the same bytes as the firmware's.
 Prints the figures; asserts nothing about time (figures, not tests). The machine's load average
 is printed with them: on a shared machine the figures are only as good as that.
+
+Figures (2-core VM shared with other jobs, load average 18-21): fertilizer, 23 s simulated, 3
+repeats: firmware over the software bus 2.49 s wall / 0.27 s CPU (x9.2), LS-BUS FMU inline
+1.90 s / 0.22 s (x12.1), LS-BUS FMU on the software bus 2.97 s / 0.41 s (x7.7), signal-level
+FMU inline 1.98 s / 0.22 s (x11.6), every bus log the firmware's; depth, 10 s of depth-step, 2
+repeats: firmware 3.08 s, LS-BUS FMU inline 3.02 s.
 """
 
 from __future__ import annotations

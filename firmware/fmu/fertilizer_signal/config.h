@@ -67,7 +67,10 @@ typedef enum {
     vr_status_sensorfault = 107,
     vr_status_counter = 108,
     vr_ff_coeff = 200,
-    vr_mode = 201
+    vr_mode = 201,
+    vr_calibration_gramsperrev = 60,
+    vr_calibration_shaftspeed = 61,
+    vr_calibration_revolutions = 62
 } ValueReference;
 
 #define N_VR 256

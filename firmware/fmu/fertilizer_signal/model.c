@@ -7,7 +7,8 @@
  * the adapter clock steps x period, as the firmware stamps frames in lockstep), the Hall speed
  * once its counter has been heard, the ISO 11783-7 speeds once their distance has been heard
  * (a value above 64.255 m/s is "not available"), the ground-based speed fresh when its speed
- * or distance changed. Then fert_step runs and its frames give the outputs: the motor command
+ * or distance changed, the operator's calibration test (MeterCalibration) once its values have
+ * been heard. Then fert_step runs and its frames give the outputs: the motor command
  * every step, the status every tenth (held in between), as the firmware sends them.
  * Parameters: mode (the law) and ff_coeff, as the firmware's --param. */
 #include <math.h>
@@ -24,7 +25,8 @@ static bool is_real(ValueReference vr)
     return vr == vr_time || vr == vr_setpoint_targetrate || vr == vr_setpoint_workingwidth ||
            vr == vr_setpoint_targetflow || (vr >= vr_row1_flow && vr <= vr_row4_flow) ||
            vr == vr_wheelspeed || (vr >= vr_wheelbasedspeed && vr <= vr_groundbaseddistance) ||
-           (vr >= vr_motorcommand && vr <= vr_status_commandvoltage) || vr == vr_ff_coeff;
+           (vr >= vr_motorcommand && vr <= vr_status_commandvoltage) || vr == vr_ff_coeff ||
+           (vr >= vr_calibration_gramsperrev && vr <= vr_calibration_revolutions);
 }
 
 static bool is_integer(ValueReference vr)
@@ -42,7 +44,8 @@ static bool is_boolean(ValueReference vr)
 
 static bool is_input(ValueReference vr)
 {
-    return vr >= vr_setpoint_targetrate && vr <= vr_groundbaseddistance;
+    return (vr >= vr_setpoint_targetrate && vr <= vr_groundbaseddistance) ||
+           (vr >= vr_calibration_gramsperrev && vr <= vr_calibration_revolutions);
 }
 
 static void start(ModelInstance *comp)
@@ -87,6 +90,7 @@ Status setStartValues(ModelInstance *comp)
     M(real)[vr_wheelbaseddistance] = -1.0;
     M(real)[vr_groundbaseddistance] = -1.0;
     M(last_ground_distance) = -1.0;
+    M(real)[vr_calibration_gramsperrev] = -1.0;
     strcpy(M(mode), "physical");
     comp->nextEventTime = FIXED_SOLVER_STEP;
     comp->nextEventTimeDefined = true;
@@ -144,6 +148,23 @@ static void take_inputs(ModelInstance *comp, double now_s)
     }
     M(last_ground_distance) = d;
     M(last_ground_speed) = v;
+    if (M(real)[vr_calibration_gramsperrev] >= 0.0) {
+        /* the terminal's calibration test, through the adapter's own handler: it sets the
+         * meter map from the values alone, so taking it each step is taking it once */
+        struct fertilizer_meter_calibration_t m;
+        m.grams_per_rev =
+            fertilizer_meter_calibration_grams_per_rev_encode(M(real)[vr_calibration_gramsperrev]);
+        m.test_shaft_speed =
+            fertilizer_meter_calibration_test_shaft_speed_encode(M(real)[vr_calibration_shaftspeed]);
+        m.revolutions =
+            fertilizer_meter_calibration_revolutions_encode(M(real)[vr_calibration_revolutions]);
+        hal_can_frame_t f;
+        memset(&f, 0, sizeof f);
+        f.id = FERTILIZER_METER_CALIBRATION_FRAME_ID;
+        f.len = 8;
+        fertilizer_meter_calibration_pack(f.data, &m, sizeof f.data);
+        fert_on_frame(a, &f, now_s);
+    }
 }
 
 static void take_outputs(ModelInstance *comp, const hal_can_frame_t *out, size_t n)

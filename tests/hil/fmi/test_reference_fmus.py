@@ -48,6 +48,7 @@ SLOW = pytest.mark.slow
     (LSBUS, "bench-step-23", 10.0),
     (SIGNAL, "bench-step-23", 10.0),
     (LSBUS, "fault-dut-restart", 16.0),
+    (SIGNAL, "bench-lot-calibrated", 8.0),
     pytest.param(SIGNAL, "fault-dut-restart", 16.0, marks=SLOW),
     pytest.param(LSBUS, "field-stop-go", 15.0, marks=SLOW),
     pytest.param(SIGNAL, "field-stop-go", 15.0, marks=SLOW),
