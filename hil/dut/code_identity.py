@@ -203,7 +203,8 @@ def _dut_files(program: Path) -> Path:
 
 def code_identity(*, kind: str, argv: Sequence[str], inprocess: str = "",
                   sources: Sequence[Path] = (), source_sha256: str = "",
-                  built: bool = True, shown_as: str = "") -> dict[str, Any]:
+                  built: bool = True, shown_as: str = "",
+                  fmu: Path | None = None) -> dict[str, Any]:
     """What identifies a DUT's code, for the record's ``dut.code``.
 
     Parameters
@@ -223,6 +224,8 @@ def code_identity(*, kind: str, argv: Sequence[str], inprocess: str = "",
     shown_as : str, optional
         The program's path as the record writes it (a firmware's ``{build_dir}/name``: the
         cache entry is this machine's), instead of :func:`shown`.
+    fmu : Path, optional
+        An FMU DUT's file (``[fmu] path`` resolved): its program.
 
     Returns
     -------
@@ -250,6 +253,16 @@ def code_identity(*, kind: str, argv: Sequence[str], inprocess: str = "",
                               else program.problem}
         else:
             out["program"] = {"path": None, "sha256": None, "what": program.what}
+    if fmu is not None:
+        if fmu.is_file() and built:
+            out["program"] = {**file_facts(fmu), "what": "fmu"}
+            if shown_as:
+                out["program"]["path"] = shown_as
+            if not sources:
+                files.append(fmu)
+        else:
+            out["program"] = {"path": shown_as or shown(fmu), "sha256": None, "what": "fmu",
+                              "note": "not built yet" if not built else "missing"}
     if source_sha256:
         out["source_sha256"] = source_sha256
     if inprocess:

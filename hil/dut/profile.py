@@ -435,11 +435,16 @@ class DutProfile:
                 build = build_entry(digest)
         argv = [expand_placeholders(a, profile_dir=where, build=build)
                 for a in self.launch.command if a != "{params}"]
+        built = build is not None and (build / ".built").exists()
+        fmu: Path | None = None
+        if self.fmu is not None:        # as hil.dut.fmu.fmu_path resolves it
+            text = expand_placeholders(self.fmu.path, profile_dir=where, build=build)
+            fmu = Path(text) if Path(text).is_absolute() else database_path(text, self.path)
+            built = built or "{build_dir}" not in self.fmu.path
+        first = self.fmu.path if self.fmu is not None else next(iter(self.launch.command), "")
         return code_identity(kind=self.dut.kind, argv=argv, inprocess=self.launch.inprocess,
-                             sources=sources, source_sha256=digest,
-                             built=build is not None and (build / ".built").exists(),
-                             shown_as=next((a for a in self.launch.command[:1]
-                                            if "{build_dir}" in a), ""))
+                             sources=sources, source_sha256=digest, built=built,
+                             shown_as=first if "{build_dir}" in first else "", fmu=fmu)
 
 
 def load_profile(path: str | Path) -> DutProfile:

@@ -176,3 +176,43 @@ def test_a_built_firmwares_identity_is_its_binary(firmware: Callable[..., Path],
     binary.unlink()
     assert main(["profile", "check", "-q", str(path)]) == 2
     assert f"{path}: [launch.command]" in capsys.readouterr().err
+
+
+FMU = '''
+[dut]
+name = "toy-fmu"
+version = "0.1.0"
+kind = "fmu"
+rig = "fertilizer"
+controller = "toy"
+
+[build]
+command = ["sh", "-c", "cp {profile_dir}/src/fw.sh {build_dir}/toy.fmu"]
+sources = ["{profile_dir}/src"]
+artifacts = ["{build_dir}/toy.fmu"]
+
+[fmu]
+path = "{build_dir}/toy.fmu"
+level = "signal"
+
+[wiring]
+node_id = 0x10
+
+[timing]
+control_period_ms = 100
+'''
+
+
+def test_an_fmus_identity_is_its_fmu_file(tmp_path: Path,
+                                          firmware: Callable[..., Path]) -> None:
+    path = tmp_path / "toy-fmu.toml"
+    path.write_text(FMU, encoding="utf-8")
+    profile = load_profile(path)            # (the FMU is checked once it exists: not yet)
+    code = profile.identity()["code"]
+    assert code["program"] == {"path": "{build_dir}/toy.fmu", "sha256": None, "what": "fmu",
+                               "note": "not built yet"}
+    built = ensure_built(profile)
+    fmu = Path(str(built["build_dir"])) / "toy.fmu"
+    code = profile.identity()["code"]
+    assert code["program"]["sha256"] == _sha(fmu) and code["program"]["what"] == "fmu"
+    assert code["source_sha256"] == built["source_sha256"]
