@@ -201,6 +201,9 @@ class DeviceSpec:
         _non_negative(self.heartbeat_ms, "heartbeat_ms")
         if (self.heartbeat_ms or self.eds) and self.node_id is None:
             raise ConfigError("a heartbeat or an EDS needs the node's node_id", key="node_id")
+        if self.heartbeat_ms and self.eds:
+            raise ConfigError("the EDS's object 0x1017 sets the heartbeat of a node played from "
+                              "its EDS: leave heartbeat_ms out", key="heartbeat_ms")
         if not self.send and not self.receive and not self.node_id:
             raise ConfigError("a device sends, receives, or is a CANopen node", key="send")
 

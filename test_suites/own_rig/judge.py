@@ -45,7 +45,7 @@ def smoothed(t: np.ndarray, y: np.ndarray, c: ControlledPlan) -> np.ndarray:
     if c.spec.filter == "none" or len(t) < 2:
         return y
     samples = max(1, round(c.spec.filter_s / float(np.median(np.diff(t)))))
-    return smooth(y, samples, c.spec.filter)
+    return smooth(y, samples | 1, c.spec.filter)         # centred: an odd count
 
 
 class Recorder:
