@@ -216,3 +216,13 @@ def test_an_fmus_identity_is_its_fmu_file(tmp_path: Path,
     code = profile.identity()["code"]
     assert code["program"]["sha256"] == _sha(fmu) and code["program"]["what"] == "fmu"
     assert code["source_sha256"] == built["source_sha256"]
+
+
+def test_hil_run_refuses_a_missing_script_before_any_run(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = _daemon(tmp_path, 'command = ["{python}", "{profile_dir}/gone.py"]')
+    out = tmp_path / "out"
+    assert main(["run", "--rig", "fertilizer", "--dut", str(path), "--scenario",
+                 "bench-step-23", "--out", str(out)]) == 2
+    assert f"{path}: [launch.command] the script it runs:" in capsys.readouterr().err
+    assert not out.exists() or not any(out.iterdir())
