@@ -1,4 +1,5 @@
-"""Fixtures for the FMU tests: a cached build of firmware/fmu (the FMUs built from C).
+"""Fixtures for the FMU tests: a cached build of firmware/fmu's probe FMUs (no firmware code:
+a quick build; the reference FMUs are built by their profiles' [build]).
 
 The build goes to ``$AGRIHIL_CACHE/builds/fmu-pytest-<hash of its sources>`` (default cache
 ``~/.cache/agrihil``), so an unchanged tree is built once; the tests are skipped, with the
@@ -18,13 +19,16 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[3]
 FIRMWARE = ROOT / "firmware"
-SOURCES = ("fmu", "core", "apps", "generated", "hal")
+SOURCES = ("fmu/common", "fmu/lsbus_probe", "fmu/lsbus_probe_timed", "fmu/third_party",
+           "fmu/CMakeLists.txt", "hal/hal_can.h")
+TARGETS = ("agrihil-lsbus-probe", "agrihil-lsbus-probe-timed")
 
 
 def _source_hash() -> str:
     digest = hashlib.sha256()
     for top in SOURCES:
-        for path in sorted((FIRMWARE / top).rglob("*")):
+        root = FIRMWARE / top
+        for path in sorted(root.rglob("*")) if root.is_dir() else [root]:
             if path.is_file():
                 digest.update(str(path.relative_to(FIRMWARE)).encode())
                 digest.update(path.read_bytes())
@@ -39,7 +43,7 @@ def _cache_root() -> Path:
 
 
 def build_fmus(build_dir: Path) -> Path:
-    """Build every FMU of firmware/fmu into ``build_dir`` (once); return its ``fmus`` folder."""
+    """Build the probe FMUs into ``build_dir`` (once); return its ``fmus`` folder."""
     build_dir.mkdir(parents=True, exist_ok=True)
     done = build_dir / ".built"
     with (build_dir / ".lock").open("w") as lock:
@@ -49,7 +53,8 @@ def build_fmus(build_dir: Path) -> Path:
             with log.open("w") as out:
                 for cmd in (["cmake", "-S", str(FIRMWARE / "fmu"), "-B", str(build_dir),
                              "-DCMAKE_BUILD_TYPE=Release"],
-                            ["cmake", "--build", str(build_dir), "-j2"]):
+                            ["cmake", "--build", str(build_dir), "-j2", "--target",
+                             *TARGETS]):
                     if subprocess.run(cmd, stdout=out, stderr=subprocess.STDOUT,
                                       timeout=600).returncode != 0:
                         raise RuntimeError(f"FMU build failed ({' '.join(cmd)}):\n"

@@ -46,8 +46,8 @@ SLOW = pytest.mark.slow
 
 @pytest.mark.parametrize("fmu_profile, scenario, duration_s", [
     (LSBUS, "bench-step-23", 10.0),
-    (SIGNAL, "bench-step-23", 10.0),
-    (LSBUS, "fault-dut-restart", 16.0),
+    pytest.param(SIGNAL, "bench-step-23", 10.0, marks=SLOW),
+    pytest.param(LSBUS, "fault-dut-restart", 16.0, marks=SLOW),
     (SIGNAL, "bench-lot-calibrated", 8.0),
     pytest.param(SIGNAL, "fault-dut-restart", 16.0, marks=SLOW),
     pytest.param(LSBUS, "field-stop-go", 15.0, marks=SLOW),

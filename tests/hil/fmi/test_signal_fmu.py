@@ -10,7 +10,7 @@ import cantools
 import pytest
 
 from hil.dut.factory import make_dut, profile_run_options
-from hil.dut.fmu import check_fmu
+from hil.dut.fmu import fmu_problems
 from hil.dut.profile import load_profile
 from hil.errors import ConfigError
 from hil.rig.runner import RunOptions, run_scenario
@@ -100,12 +100,16 @@ def test_a_wrong_binding_is_refused_naming_the_variable(
         assert f"[{key}]" in str(info.value)
 
 
-def test_a_signal_fmu_at_bus_level_is_refused(tmp_path: Path, fmus: Path) -> None:
-    text = PROFILE.read_text(encoding="utf-8")
-    head = text.split("\n[build]\n")[0] + "\n"
-    tail = "[wiring]" + text.split("[wiring]", 1)[1].replace("kp = 40.0", "")
-    fmu = f'[fmu]\npath = "{fmus / "agrihil-fertilizer-signal.fmu"}"\nlevel = "bus"\n\n'
-    path = tmp_path / PROFILE.name
-    path.write_text(head + fmu + tail, encoding="utf-8")
-    with pytest.raises(ConfigError, match=r"\[fmu.level\] a bus-level FMU is FMI 3.0"):
-        check_fmu(load_profile(path))
+def test_a_signal_fmu_at_bus_level_is_refused(tmp_path: Path) -> None:
+    from hil.dut.build import ensure_built
+
+    built = Path(str(ensure_built(load_profile(PROFILE))["build_dir"]))
+    path = variant(tmp_path, 'level = "signal"', 'level = "bus"')
+    text = path.read_text(encoding="utf-8")
+    text = text.split("\n[fmu.variables]")[0] + "\n[wiring]" + text.split("[wiring]", 1)[1]
+    text = text.replace("{build_dir}", str(built)).replace("kp = 40.0", "")
+    text = text.split("\n[build]\n")[0] + "\n[fmu]" + text.split("\n[fmu]", 1)[1]
+    path.write_text(text, encoding="utf-8")
+    problems = [message for _, message, _ in fmu_problems(load_profile(path))]
+    assert any("has no event mode" in m for m in problems), problems
+    assert any("declares no CAN terminal" in m for m in problems), problems
