@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from hil.dut.profile import DutProfile
-from hil.limits import MEASUREMENTS
+from hil.effective_limits import record_limits
 from hil.qualification.summary import summary
 from hil.record.atomic import write_json_atomic
 from hil.record.recorder import versions
@@ -98,11 +98,7 @@ def qualification_record(*, run_id: str, started_at: str, wall_s: float, verdict
         "bus": bus, "clock": clock, "seed": seed,
         "suites": sorted(suites),
         "versions": versions(),
-        "limits": {name: {"low": lim.low, "high": lim.high,
-                          "unit": MEASUREMENTS[name].unit,
-                          **({"when": [c.to_dict() for c in lim.cases]} if lim.cases
-                             else {})}
-                   for name, lim in profile.limits.items()},
+        "limits": record_limits(profile.limits),
         "summary": summary(measurements),
         "measurements": measurements,
         "tests": tests,
