@@ -539,8 +539,18 @@ def _command_ids(src: str, contract: Contract, given: set[int],
                         f"0x{i:X} is no 11-bit id CiA 301 leaves to PDOs" for i in bad)
         return [Problem(src, "wiring.command_ids", f"no RPDO of the rig's CANopen nodes can "
                         f"be configured at {_hex_list(set(bad))} ({why})", fix)]
+    moved = given - waits
+    if not moved:
+        return [Problem(src, "wiring.command_ids",
+                        f"[{_hex_list(given)}] is {'one' if len(given) == 1 else 'some'} of "
+                        f"the frames the rig waits for by default ([{_hex_list(waits)}], "
+                        f"{what}): the rig waits for {'it' if len(given) == 1 else 'them'} "
+                        "only, where the node takes a command as its EDS maps it (or as the "
+                        "DUT configures it); each run checks that the DUT's command arrives "
+                        "there, and a listed id that carries no command stops the run",
+                        note=True)]
     return [Problem(src, "wiring.command_ids",
-                    f"[{_hex_list(given)}] differs from the frames the rig waits for by "
+                    f"[{_hex_list(moved)}] is not among the frames the rig waits for by "
                     f"default ([{_hex_list(waits)}], {what}): the DUT must configure the RPDOs "
                     "that carry its commands there; each run checks it once the DUT commands, "
                     "and a listed id that carries no command stops the run", note=True)]

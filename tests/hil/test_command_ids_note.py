@@ -11,8 +11,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pytest
-
 from hil.cli.profile import profile_problems
 from hil.dut.profile import load_profile
 
@@ -35,9 +33,6 @@ def _note(tmp_path: Path, ids: str) -> str:
     return notes[0].message
 
 
-@pytest.mark.xfail(strict=True, reason="the note is written in hil/contract/checks.py "
-                                       "(_command_ids); the fix is in H2's report: remove this "
-                                       "marker when it is applied")
 def test_a_default_id_needs_no_remapping(tmp_path: Path) -> None:
     note = _note(tmp_path, "0x302")
     assert "must configure" not in note
