@@ -61,7 +61,9 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
     qualify.add_argument("profile", help="DUT profile (TOML)")
     add_bus_clock(qualify)
     qualify.add_argument("--suite", default=None,
-                         help=f"comma-separated suites: fast, full (the papers' 3 repeats), "
+                         help=f"comma-separated suites: fast, full (the papers' other runs: "
+                              f"[F]'s 2nd and 3rd accuracy repeats on the fertilizer rig, "
+                              f"[D]'s 1-3 and 5-7 km/h field runs on the depth rig), "
                               f"robustness, busload (real time on a bus loaded near its "
                               f"bit rate, ~1 min), isobus (field runs under the rig's Task "
                               f"Controller), all (default: {DEFAULT_SUITES}; "
