@@ -490,11 +490,40 @@ def load_profile(path: str | Path) -> DutProfile:
     _check_rig_config(profile.dut.rig, rig_config, str(path))
     _check_control_period(profile, rig_config, str(path))
     _check_database(profile, path)
-    return DutProfile(dut=profile.dut, wiring=profile.wiring, timing=profile.timing,
-                      launch=profile.launch, build=profile.build,
-                      parameters=profile.parameters, limits=profile.limits,
-                      rig_config=rig_config, campaign=profile.campaign, fmu=profile.fmu,
-                      path=path, sha256=hashlib.sha256(raw).hexdigest())
+    loaded = DutProfile(dut=profile.dut, wiring=profile.wiring, timing=profile.timing,
+                        launch=profile.launch, build=profile.build,
+                        parameters=profile.parameters, limits=profile.limits,
+                        rig_config=rig_config, campaign=profile.campaign, fmu=profile.fmu,
+                        path=path, sha256=hashlib.sha256(raw).hexdigest())
+    if loaded.fmu is not None:
+        _check_fmu_file(loaded)
+    return loaded
+
+
+def _check_fmu_file(profile: DutProfile) -> None:
+    """An FMU DUT's FMU (fmpy's validation, terminals, bindings, parameters), when it exists.
+
+    One that ``[build]`` makes is checked after the build, before the run (:mod:`hil.dut.fmu`);
+    where it was built already, here.
+    """
+    from hil.dut.fmu_check import check_fmu
+
+    assert profile.fmu is not None
+    where = profile.path.resolve().parent if profile.path else Path.cwd()
+    build: Path | None = None
+    if profile.build is not None and "{build_dir}" in profile.fmu.path:
+        sources = [_rooted(expand_placeholders(src, profile_dir=where))
+                   for src in sorted(profile.build.sources)]
+        if not all(src.exists() for src in sources):
+            return                    # reported as build.sources
+        build = build_entry(identity_digest(tuple(profile.build.command), tuple(sources)))
+    text = expand_placeholders(profile.fmu.path, profile_dir=where, build=build)
+    target = Path(text) if Path(text).is_absolute() else database_path(text, profile.path)
+    if target.exists():
+        check_fmu(profile, target)
+    elif profile.build is None:
+        raise ConfigError(f"the FMU {target} does not exist", path=str(profile.path),
+                          key="fmu.path")
 
 
 #: a must-fail profile's registration line (docs/guide/suites.md, "The coverage rule")

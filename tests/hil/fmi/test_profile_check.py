@@ -1,4 +1,4 @@
-"""``kind = "fmu"`` profiles: what every run refuses (``hil.dut.fmu.check_fmu``), by name."""
+"""``kind = "fmu"`` profiles: what ``hil profile check`` and every run refuse, by name."""
 
 from __future__ import annotations
 
@@ -113,3 +113,18 @@ def test_hil_run_exits_2_naming_the_problem(fmus: Path, tmp_path: Path) -> None:
                           capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert done.returncode == 2, done.stdout + done.stderr
     assert "no CAN terminal" in done.stderr and "Traceback" not in done.stderr
+
+
+def test_hil_profile_check_exits_2_naming_the_problem(fmus: Path, tmp_path: Path) -> None:
+    src = fmus / "agrihil-lsbus-probe.fmu"
+    with zipfile.ZipFile(src) as z:
+        xml = z.read("terminalsAndIcons/terminalsAndIcons.xml").decode()
+    two = xml.replace("</Terminals>", TERMINAL.format(name="SecondCan") + "  </Terminals>")
+    fmu = rezip(src, tmp_path / "two.fmu",
+                replace={"terminalsAndIcons/terminalsAndIcons.xml": two.encode()})
+    done = subprocess.run([sys.executable, "-m", "hil", "profile", "check", "-q",
+                           str(profile_for(tmp_path, fmu))], capture_output=True, text=True,
+                          timeout=120, cwd=tmp_path)
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert "[fmu.terminal]" in done.stderr and "SecondCan" in done.stderr
+    assert "Traceback" not in done.stderr

@@ -10,7 +10,6 @@ import cantools
 import pytest
 
 from hil.dut.factory import make_dut, profile_run_options
-from hil.dut.fmu import fmu_problems
 from hil.dut.profile import load_profile
 from hil.errors import ConfigError
 from hil.rig.runner import RunOptions, run_scenario
@@ -110,6 +109,6 @@ def test_a_signal_fmu_at_bus_level_is_refused(tmp_path: Path) -> None:
     text = text.replace("{build_dir}", str(built)).replace("kp = 40.0", "")
     text = text.split("\n[build]\n")[0] + "\n[fmu]" + text.split("\n[fmu]", 1)[1]
     path.write_text(text, encoding="utf-8")
-    problems = [message for _, message, _ in fmu_problems(load_profile(path))]
-    assert any("has no event mode" in m for m in problems), problems
-    assert any("declares no CAN terminal" in m for m in problems), problems
+    with pytest.raises(ConfigError, match=r"\[fmu.path\] the FMU has no event mode .*; and 1 "
+                                          r"more problem"):
+        load_profile(path)       # the other: it declares no CAN terminal
