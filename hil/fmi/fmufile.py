@@ -212,10 +212,18 @@ def _ls_bus_manifest(path: Path, where: str) -> bool:
 
 
 def validate(path: str | Path) -> list[str]:
-    """fmpy's validation of the FMU (schema, names, model structure, units): its problems."""
+    """fmpy's validation of the FMU (schema, names, model structure, units): its problems
+    (cached per file version: every profile load asks)."""
+    p = Path(path)
+    stat = p.stat()
+    return list(_validate(str(p), stat.st_mtime_ns, stat.st_size))
+
+
+@functools.lru_cache(maxsize=16)
+def _validate(path: str, mtime_ns: int, size: int) -> tuple[str, ...]:
     from fmpy.validation import validate_fmu
 
-    return list(validate_fmu(str(path)))
+    return tuple(validate_fmu(path))
 
 
 @functools.lru_cache(maxsize=16)
