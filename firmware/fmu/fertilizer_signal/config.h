@@ -85,8 +85,6 @@ typedef struct {
     uint32_t steps;
     int32_t last_row_counter[FERT_ROWS];
     int32_t last_wheel_counter;
-    double last_ground_distance;
-    double last_ground_speed;
     char mode[MODE_TEXT];
     bool failed;
 } ModelData;

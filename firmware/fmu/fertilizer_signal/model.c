@@ -6,8 +6,8 @@
  * it stands, a row's report only when its counter changed (the report's arrival, stamped with
  * the adapter clock steps x period, as the firmware stamps frames in lockstep), the Hall speed
  * once its counter has been heard, the ISO 11783-7 speeds once their distance has been heard
- * (a value above 64.255 m/s is "not available"), the ground-based speed fresh when its speed
- * or distance changed, the operator's calibration test (MeterCalibration) once its values have
+ * (a value above 64.255 m/s is "not available"), the ground-based speed heard every step once
+ * heard (a value holds until the next), the operator's calibration test (MeterCalibration) once its values have
  * been heard. Then fert_step runs and its frames give the outputs: the motor command
  * every step, the status every tenth (held in between), as the firmware sends them.
  * Parameters: mode (the law) and ff_coeff, as the firmware's --param. */
@@ -89,7 +89,6 @@ Status setStartValues(ModelInstance *comp)
     M(last_wheel_counter) = -1;
     M(real)[vr_wheelbaseddistance] = -1.0;
     M(real)[vr_groundbaseddistance] = -1.0;
-    M(last_ground_distance) = -1.0;
     M(real)[vr_calibration_gramsperrev] = -1.0;
     strcpy(M(mode), "physical");
     comp->nextEventTime = FIXED_SOLVER_STEP;
@@ -139,15 +138,16 @@ static void take_inputs(ModelInstance *comp, double now_s)
         const bool valid = v <= J1939_NOT_AVAILABLE_MPS;
         a->speed[1] = (fert_speed_t){valid, valid ? v : 0.0};
     }
+    /* a value holds until the next: once heard, the tractor's ground-based speed is taken as
+     * heard every step (standing still, neither speed nor distance changes while its frames
+     * keep coming; a tractor that falls silent cannot be told from one standing still) */
     const double d = M(real)[vr_groundbaseddistance];
     const double v = M(real)[vr_groundbasedspeed];
-    if (d >= 0.0 && (d != M(last_ground_distance) || v != M(last_ground_speed))) {
+    if (d >= 0.0) {
         const bool valid = v <= J1939_NOT_AVAILABLE_MPS;
         a->speed[2] = (fert_speed_t){valid, valid ? v : 0.0};
         a->ground_at_s = now_s;
     }
-    M(last_ground_distance) = d;
-    M(last_ground_speed) = v;
     if (M(real)[vr_calibration_gramsperrev] >= 0.0) {
         /* the terminal's calibration test, through the adapter's own handler: it sets the
          * meter map from the values alone, so taking it each step is taking it once */

@@ -50,8 +50,8 @@ SLOW = pytest.mark.slow
     pytest.param(LSBUS, "fault-dut-restart", 16.0, marks=SLOW),
     (SIGNAL, "bench-lot-calibrated", 8.0),
     pytest.param(SIGNAL, "fault-dut-restart", 16.0, marks=SLOW),
-    pytest.param(LSBUS, "field-stop-go", 15.0, marks=SLOW),
-    pytest.param(SIGNAL, "field-stop-go", 15.0, marks=SLOW),
+    pytest.param(LSBUS, "field-stop-go", 45.0, marks=SLOW),
+    pytest.param(SIGNAL, "field-stop-go", 45.0, marks=SLOW),
     pytest.param(LSBUS, "fault-sensor-stale", 14.0, marks=SLOW),
     pytest.param(SIGNAL, "fault-sensor-stale", 14.0, marks=SLOW),
 ], ids=lambda v: v.stem.rsplit("-", 1)[-1] if isinstance(v, Path) else str(v))
