@@ -129,6 +129,15 @@ _LOT_CORRECTION_LIMIT_S = 7.5
 #: lag (~1 pp, [F] Table 2): ~95 %.
 _LOT_UNCALIBRATED_ACCURACY_LIMIT_PCT = 96.9
 
+#: isobus.depth.zone_error, from [D] and GB/T 20865 as the depth profiles read them: the mean
+#: seeding depth a field must reach is the target +-10 % of the 30 mm working depth, 3 mm (the
+#: field mean's 27-33 mm; depth.step.true_steady_state_error's limit, which holds the sensing
+#: chain's bias no controller sees); under a map each zone is a field of its own depth.
+_DEPTH_ZONE_ERROR_LIMIT_MM = 3.0
+#: isobus.depth.zone_pass_rate, from [D] Table 3: 91-93 % of the seeds in GB/T 20865's band on the
+#: field; the depth profiles' depth.field.pass_rate limit, 90 %, per zone of the map.
+_DEPTH_ZONE_PASS_RATE_LIMIT_PCT = 90.0
+
 
 #: flow.rows.applied_accuracy, from [F]: each row's mass laid while the terminal has it on, against
 #: its share of the metering rows' total target (split by the rollers' gains, which no
@@ -584,6 +593,15 @@ _SPECS = (
                     "in % of what the map prescribed there",
                     high=_SPEED_LOSS_OVERAPPLICATION_LIMIT_PCT, conditions=(),
                     source=f"{_ISO}-7 + {_F} field budget"),
+    MeasurementSpec("isobus.depth.zone_error", "mm", "sowing_depth",
+                    "per zone of a seeding-depth map (DDI 56 from the TC): |mean true seed "
+                    "depth - the zone's depth| on the passes, away from the zone boundaries",
+                    high=_DEPTH_ZONE_ERROR_LIMIT_MM, conditions=("zone",),
+                    source="[D] Table 3 + GB/T 20865"),
+    MeasurementSpec("isobus.depth.zone_pass_rate", "%", "sowing_depth",
+                    "per zone of the map: seeds within the zone depth's GB/T 20865 band, on "
+                    "the same cells", low=_DEPTH_ZONE_PASS_RATE_LIMIT_PCT, conditions=("zone",),
+                    source="[D] Table 3 + GB/T 20865"),
     # ISOBUS bus conformance of an ISOBUS DUT, every run (hil/conformance/isobus.py)
     MeasurementSpec("isobus.claim.frames_before", "frames", "*",
                     "frames the DUT sent from an address before claiming it or within the "

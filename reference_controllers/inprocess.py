@@ -34,5 +34,9 @@ def sowing_depth_fuzzy_pid(**params: ParamValue) -> Controller:
     return _make("sowing-depth-fuzzy-pid", params)
 
 
+def sowing_depth_fuzzy_pid_isobus(**params: ParamValue) -> Controller:
+    return _make("sowing-depth-fuzzy-pid-isobus", params)
+
+
 def sowing_depth_dp200(**params: ParamValue) -> Controller:
     return _make("sowing-depth-dp200", params)

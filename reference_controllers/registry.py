@@ -74,6 +74,12 @@ def _depth(params: dict[str, ParamValue], step_on_sync: bool) -> Controller:
     return DepthController(params, step_on_sync=step_on_sync)
 
 
+def _depth_isobus(params: dict[str, ParamValue], step_on_sync: bool) -> Controller:
+    from reference_controllers.sowing_depth.isobus_mode import IsobusDepthController
+
+    return IsobusDepthController(params, step_on_sync=step_on_sync)
+
+
 def _dp200(params: dict[str, ParamValue], step_on_sync: bool) -> Controller:
     from reference_controllers.sowing_depth.dbc_adapter import (
         DP200_DATABASE,
@@ -93,6 +99,8 @@ CONTROLLERS: dict[str, ControllerKind] = {k.name: k for k in (
     ControllerKind("fertilizer-rc400", "[F] piecewise PID on a foreign database (the RC-400 "
                    "of docs/examples/byo-fertilizer)", 0.1, _rc400),
     ControllerKind("sowing-depth-fuzzy-pid", "[D] fuzzy self-tuning PID", 0.01, _depth),
+    ControllerKind("sowing-depth-fuzzy-pid-isobus", "[D] fuzzy PID as an ISOBUS implement "
+                   "(TC seeding depth, DDI 56)", 0.01, _depth_isobus),
     ControllerKind("sowing-depth-dp200", "[D] fuzzy PID on a foreign database, remapping the "
                    "drive's PDOs at boot (the DP-200 of docs/examples/byo-depth)", 0.01, _dp200),
 )}

@@ -122,6 +122,9 @@ ACTUAL_MASS_PER_TIME_RATE = 42
 DEFAULT_MASS_PER_TIME_RATE = 43
 SETPOINT_SEEDING_DEPTH = 56
 ACTUAL_SEEDING_DEPTH = 57
+DEFAULT_SEEDING_DEPTH = 58
+MINIMUM_SEEDING_DEPTH = 59
+MAXIMUM_SEEDING_DEPTH = 60
 SETPOINT_WORKING_WIDTH = 66
 ACTUAL_WORKING_WIDTH = 67
 DEFAULT_WORKING_WIDTH = 68
@@ -188,6 +191,9 @@ _ENTRIES: list[DdiEntry] = [
     _e(43, "Default Mass Per Time Application Rate", "mg/s", 1.0, 0, _MAX),
     _e(56, "Setpoint Seeding Depth", "mm", 1.0, 0, _MAX),
     _e(57, "Actual Seeding Depth", "mm", 1.0, 0, _MAX),
+    _e(58, "Default Seeding Depth", "mm", 1.0, 0, _MAX),
+    _e(59, "Minimum Seeding Depth", "mm", 1.0, 0, _MAX),
+    _e(60, "Maximum Seeding Depth", "mm", 1.0, 0, _MAX),
     _e(66, "Setpoint Working Width", "mm", 1.0, 0, _MAX),
     _e(67, "Actual Working Width", "mm", 1.0, 0, _MAX),
     _e(68, "Default Working Width", "mm", 1.0, 0, _MAX),

@@ -23,6 +23,7 @@ from plant_emulators.sowing_depth.devices import (
     TerminalDevice,
     TractorSpeedDevice,
 )
+from plant_emulators.sowing_depth.field_run import DEPTH_FIELD_FAULTS, DepthFieldRun, SeedLine
 from plant_emulators.sowing_depth.frames import EDS_PATH
 from plant_emulators.sowing_depth.gnss_serial import GnssSerialPort, SerialPortError
 from plant_emulators.sowing_depth.nmea import GnssReceiver
@@ -63,6 +64,8 @@ class SowingDepthRig(Rig):
         "drive_power_lost": "the drive's main power is switched off",
         "gnss_fix_lost": "the GNSS receiver loses its fix (RMC status V, GGA quality 0)",
         "controller_silent": "no frame of the controller reaches the rig (cut wire)",
+        **{name: f"field runs under a TC ([tractor] scenarios): {what}"
+           for name, what in DEPTH_FIELD_FAULTS.items()},
     }
     plot_groups: ClassVar[list[tuple[str, list[str]]]] = [
         ("depth [mm]", ["target_depth_mm", "mean_true_depth_mm", "sensed_depth_mm"]),
@@ -111,22 +114,41 @@ class SowingDepthRig(Rig):
         self.terminal = TerminalDevice(self.codec, wiring.depth_setpoint_period_ms / 1000.0)
         self.incl_device = InclinometerDevice(self.plant, self.inclinometer, self.codec,
                                               wiring.inclinometer_period_ms / 1000.0)
+        tractor = ctx.scenario.tractor if ctx.scenario is not None else None
+        machine = cfg.machine
+        #: a field run under a Task Controller (field_run.py): the rig is an ISOBUS tractor
+        #: whose TECU and TC replace the terminal's DepthSetpoint and the speed frame
+        self.field_run = (DepthFieldRun(tractor, SeedLine(
+            machine.rows * machine.row_spacing_mm / 1000.0,
+            -machine.tractor_rear_axle_ahead_of_seed_m)) if tractor is not None else None)
+        self._pose = self.field_run.pose(0.0) if self.field_run is not None else None
+        tractor_side = ([self.field_run.device] if self.field_run is not None else
+                        [TractorSpeedDevice(self.plant, self.codec,
+                                            wiring.ground_speed_period_ms / 1000.0),
+                         self.terminal])
         self.devices = [
             self.drive,
             self.incl_device,
             DrawWireDevice(self.plant, self.draw_wire, self.codec,
                            wiring.draw_wire_period_ms / 1000.0),
-            TractorSpeedDevice(self.plant, self.codec, wiring.ground_speed_period_ms / 1000.0),
-            self.terminal,
+            *tractor_side,
             GnssDevice(self.gnss),
         ]
         self.controller_silent = False
+        if self.field_run is not None:
+            #: field runs trace where the seed line is and what the map asks there
+            self._TRACE_LAYOUT = (*type(self)._TRACE_LAYOUT, *_FIELD_TRACES)
         self._truth: list = []
         self._final_truth: dict[str, np.ndarray] | None = None
         self._since_drain_s = 0.0
 
     # --- physics --------------------------------------------------------------------------
     def advance(self, n: int, dt: float) -> None:
+        if self.field_run is not None:
+            # the path is the truth of motion: the planter moves at its speed (the GNSS line
+            # reports it, the TECU too)
+            self._pose = self.field_run.pose(self.plant.time_s)
+            self.plant.ground_speed_mps = self._pose.speed_m_s
         self.plant.advance(n, dt)
         self._since_drain_s += n * dt
         # keep the plant's truth lists short: draining 30 s at once took ~6 ms in one tick
@@ -176,6 +198,11 @@ class SowingDepthRig(Rig):
             self.receiver.fix_lost = active
         elif name == "controller_silent":
             self.controller_silent = active
+        elif name in DEPTH_FIELD_FAULTS:
+            if self.field_run is None:
+                raise ConfigError(f"{name} needs a field run under a Task Controller (a "
+                                  f"scenario with a [tractor] table)", key=name)
+            self.field_run.set_fault(name, active, time_s)
         else:
             raise ConfigError(f"unknown fault {name!r}", key=name)
 
@@ -218,6 +245,17 @@ class SowingDepthRig(Rig):
         p = self.plant
         drive = p.drive
         last_x_mv = self.incl_device.last_x_mv
+        if self.field_run is not None:
+            pose = self._pose
+            assert pose is not None
+            east, north = self.field_run.seed_point(pose)
+            prescribed = self.field_run.prescribed_depth(pose)
+            return (prescribed, p.mean_true_depth_mm,
+                    calibration_depth_mm(last_x_mv) if last_x_mv else float("nan"),
+                    p.rod_position_mm, p.rod_velocity_mm_s, p.rod_force_n, p.motor_current_a,
+                    p.cover_soil_mm, p.arm_angle_deg, p.machine_pitch_deg, p.ground_speed_mps,
+                    p.distance_m, float(drive.statusword), float(drive.error_code),
+                    east, north, pose.heading_deg, 1.0 if pose.kind == "pass" else 0.0)
         return (self.terminal.target_depth_mm, p.mean_true_depth_mm,
                 calibration_depth_mm(last_x_mv) if last_x_mv else float("nan"),
                 p.rod_position_mm, p.rod_velocity_mm_s, p.rod_force_n, p.motor_current_a,
@@ -241,7 +279,9 @@ class SowingDepthRig(Rig):
         cells = self.truth_arrays()
         depth = cells["depth_mm"]
         # the GNSS serial line's epochs: written, overrun, dropped, late, unread bytes
-        gnss = {"gnss_epochs": self.gnss.counts()}
+        gnss = {"gnss_epochs": self.gnss.counts(),
+                **({"field_run": self.field_run.truth()} if self.field_run is not None
+                   else {})}
         if depth.size == 0:
             return {"cells": 0, **gnss}
         target = self.terminal.target_depth_mm
@@ -291,6 +331,12 @@ class SowingDepthRig(Rig):
     @classmethod
     def builtin_controllers(cls) -> dict[str, Callable[[], object]]:
         return {"pi": PiDepthController}
+
+
+#: what a field run traces besides the rest: the seed line's middle (local m), the heading, and
+#: whether the path is on a pass (1) or a turn (0); target_depth_mm is the map's depth there
+_FIELD_TRACES = (("seed_east_m", "m"), ("seed_north_m", "m"), ("heading_deg", "deg"),
+                 ("on_pass", "1"))
 
 
 def _without_binding(overrides: Mapping[str, Any] | None) -> tuple[dict[str, Any], str]:

@@ -59,6 +59,8 @@ class RateUnit:
 RATE_UNITS: dict[str, RateUnit] = {
     "kg/ha": RateUnit("kg/ha", 6, 100.0),
     "l/ha": RateUnit("l/ha", 1, 10_000.0),
+    # a variable-depth seeding map: DDI 56, set-point seeding depth, 1 mm per raw value
+    "mm": RateUnit("mm", 56, 1.0),
 }
 """The rate units a map may state."""
 
