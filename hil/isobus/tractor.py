@@ -81,7 +81,8 @@ MAX_SECTIONS = 256
 #: DDIs the as-applied record reads from what the implement reports
 _ACTUAL_RATE_FOR_SETPOINT = {dd.SETPOINT_MASS_PER_AREA_RATE: dd.ACTUAL_MASS_PER_AREA_RATE,
                              dd.SETPOINT_VOLUME_PER_AREA_RATE: dd.ACTUAL_VOLUME_PER_AREA_RATE,
-                             dd.SETPOINT_COUNT_PER_AREA_RATE: dd.ACTUAL_COUNT_PER_AREA_RATE}
+                             dd.SETPOINT_COUNT_PER_AREA_RATE: dd.ACTUAL_COUNT_PER_AREA_RATE,
+                             dd.SETPOINT_SEEDING_DEPTH: dd.ACTUAL_SEEDING_DEPTH}
 _CONDENSED_SETPOINT = range(290, 306)
 #: how many recent poses the tractor keeps (pose() is asked the same times within a tick)
 _POSE_MEMO = 16
