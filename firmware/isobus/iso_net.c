@@ -392,7 +392,11 @@ static void tp_on_cm(iso_net_t *n, bool extended, const uint8_t *d, size_t len, 
     case CM_RTS:
     case CM_BAM:
     case CM_ETP_RTS:
-        rx_on_rts(n, c, d, pgn, source, destination);
+        /* ISO 11783-5: no control function sends before its claim: a transfer from an
+         * address that never claimed is not answered (hil/isobus/transport.py) */
+        if (n->table_used[source]) {
+            rx_on_rts(n, c, d, pgn, source, destination);
+        }
         break;
     case CM_CTS:
         if (mine && pgn == s->pgn) {
@@ -526,6 +530,10 @@ void iso_net_on_frame(iso_net_t *n, const hal_can_frame_t *f, double now_s)
     }
     const uint8_t *d = f->data;
     size_t len = f->len;
+    if (source == ISO_GLOBAL ||
+        (source == ISO_NULL && pgn != ISO_PGN_ADDRESS_CLAIMED && pgn != ISO_PGN_REQUEST)) {
+        return; /* 0xFF is no one's source; from 0xFE only cannot-claim and requests */
+    }
     if (pgn == ISO_PGN_ADDRESS_CLAIMED) {
         if (len != 8) {
             return;
