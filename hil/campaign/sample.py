@@ -64,11 +64,22 @@ class SampleTask:
         """The ``hil qualify`` command that reproduces this sample bit for bit."""
         parts = ["hil", "qualify", self.profile, "--bus", self.bus, "--clock", self.clock,
                  "--suite", self.suites, "--seed", str(self.seed)]
+        rig_file = _rig_file_of_profile(self.profile)
+        if rig_file is not None:      # a rig of your own is named by its file
+            parts += ["--rig", str(rig_file)]
         for item in self.override_args():
             parts += ["--rig-override", item]
         if self.keyword:
             parts += ["-k", self.keyword]
         return " ".join(_quote(p) for p in parts)
+
+
+def _rig_file_of_profile(profile: str) -> Path | None:
+    """The rig file of the profile's rig when it is a rig of your own, else None."""
+    from hil.dut.profile import load_profile
+    from hil.rig.registry import rig_file_of
+
+    return rig_file_of(load_profile(profile).dut.rig)
 
 
 def _quote(text: str) -> str:

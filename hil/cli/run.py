@@ -57,8 +57,8 @@ RECORD = "record.json"
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     run = subparsers.add_parser("run", help="run one scenario of a rig against a DUT")
     run.add_argument("--rig", help=f"rig name ({', '.join(available_rigs())}) or a rig file "
-                                   "(a rig of your own, *.toml); taken from the profile when "
-                                   "--dut is one")
+                                   "(a rig of your own: its .toml file); taken from the "
+                                   "profile when --dut is one")
     run.add_argument("--list-scenarios", action="store_true",
                      help="print the rig's scenarios, one per line, and exit")
     run.add_argument("--dut", help="the controller under test: a DUT profile (TOML) or "

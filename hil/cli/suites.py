@@ -53,6 +53,11 @@ def suite_location(rig: str) -> tuple[Path, Path]:
     packages = registered_suites()
     package = packages.get(_norm(rig))
     if package is None:
+        from hil.rig.registry import rig_file_of
+
+        if rig_file_of(rig) is not None:      # a rig of your own: the standard own-rig suites
+            package = "test_suites.own_rig"
+    if package is None:
         known = ", ".join(sorted(packages)) or "none (is agrihil installed? pip install -e .)"
         raise ConfigError(f"no qualification suites are registered for the rig {rig!r} "
                           f"(entry point group {GROUP!r}; registered: {known})", key="dut.rig")
