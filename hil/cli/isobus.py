@@ -53,7 +53,23 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:  # type: igno
     serve.add_argument("--out", type=Path, default=Path("isobus-out"), metavar="DIR",
                        help="where bus.log, tc.jsonl, as-applied.geojson and summary.json go")
     serve.add_argument("--quiet", action="store_true", help="no line per connection event")
+    serve.add_argument("--vt", action="store_true",
+                       help="also the Virtual Terminal (address 0x26, ISO 11783-6 version 4): "
+                            "the implement's screens and vt.json in OUT/vt/")
+    serve.add_argument("--vt-browser", type=_port, default=None, metavar="PORT",
+                       help="the VT in the browser at http://127.0.0.1:PORT/ (0: any free "
+                            "port, printed); implies --vt")
     serve.set_defaults(func=_serve)
+
+
+def _port(text: str) -> int:
+    try:
+        port = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a port number") from None
+    if not 0 <= port <= 65535:
+        raise argparse.ArgumentTypeError(f"port {port} is outside 0 .. 65535")
+    return port
 
 
 def _serve(args: argparse.Namespace) -> int:
@@ -70,7 +86,17 @@ def _serve(args: argparse.Namespace) -> int:
     if say is not None:
         say(f"hil isobus serve: TECU 0x80, TC 0xF7 on {args.bus}; path "
             f"{field.path.duration_s:.0f} s after {args.drive_after:g} s; writing {args.out}/")
-    result = serve(tractor, args.bus, args.out, duration_s=args.duration, console=say)
+    attached = None
+    if args.vt or args.vt_browser is not None:
+        from hil.isobus.vt.attach import attach_vt
+        attached = attach_vt(tractor.network, screens_dir=args.out / "vt",
+                             browser_port=args.vt_browser,
+                             console=lambda line: print(line, flush=True))
+    try:
+        result = serve(tractor, args.bus, args.out, duration_s=args.duration, console=say)
+    finally:
+        if attached is not None:
+            attached.close()
     print(f"hil isobus serve: {result.run_time_s:.1f} s, {result.frames} frames, "
           f"{result.events} TC events, {result.values} values; DDOP "
           f"{'activated' if result.activated else 'never activated'}"
