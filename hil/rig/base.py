@@ -62,6 +62,17 @@ class RigContext:
         """Whether the rig read :attr:`scenario` (see there)."""
         return bool(self.__dict__.get("scenario_read", False))
 
+    @property
+    def scenario_tractor(self) -> Any:
+        """The scenario's ``tractor`` table, read without setting :attr:`scenario_read`.
+
+        None without one or outside a run. A held run's prefix key holds all of its scenario
+        but the events (:func:`hil.rig.checkpoint.prefix_key`), so a rig built from its tractor
+        table alone may still be held.
+        """
+        scenario = self.__dict__.get("_scenario")
+        return getattr(scenario, "tractor", None) if scenario is not None else None
+
 
 class Rig(ABC):
     """A plant emulator on the bus: physics plus the devices that speak for it.

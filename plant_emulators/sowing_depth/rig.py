@@ -114,7 +114,7 @@ class SowingDepthRig(Rig):
         self.terminal = TerminalDevice(self.codec, wiring.depth_setpoint_period_ms / 1000.0)
         self.incl_device = InclinometerDevice(self.plant, self.inclinometer, self.codec,
                                               wiring.inclinometer_period_ms / 1000.0)
-        tractor = ctx.scenario.tractor if ctx.scenario is not None else None
+        tractor = ctx.scenario_tractor    # the tractor table only: the run may still be held
         machine = cfg.machine
         #: a field run under a Task Controller (field_run.py): the rig is an ISOBUS tractor
         #: whose TECU and TC replace the terminal's DepthSetpoint and the speed frame
