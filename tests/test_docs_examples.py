@@ -149,6 +149,10 @@ SKIPPED: dict[tuple[str, str], str] = {
      "--drive-after 10 --out isobus-out"):
         "needs a CAN interface and runs until Ctrl-C: tests/hil/isobus/test_serve.py runs it on "
         "a virtual bus, and the interop runs in the guest on vcan",
+    ("docs/guide/virtual-terminal.md", "hil isobus serve --bus socketcan:can0 "
+     "--path field.geojson --map rates.geojson --vt-browser 8080 --out isobus-out"):
+        "needs a CAN interface and runs until Ctrl-C: tests/hil/isobus/vt/ runs the serve's VT "
+        "and the browser VT on a virtual bus and in Chromium",
     ("README.md", "bash scripts/setup.sh && source .venv/bin/activate"):
         "reinstalls the venv this test runs in (pip install -e); the test already runs inside it",
     ("README.md", "bash scripts/qualify.sh"):
@@ -883,7 +887,24 @@ def check_isobus_faults_example(runner: DocRunner, block: Block) -> None:
     runner.ran.append(f"docs/guide/isobus-network.md:{block.lineno}  [loaded by parse_faults]")
 
 
+def check_vt_operator_example(runner: DocRunner, block: Block) -> None:
+    """The ``[[operator]]`` list loads with the VT's own reader, each kind of step it shows."""
+    import tempfile
+
+    from hil.isobus.vt.operator import read_operator_steps
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "scenario.toml"
+        path.write_text(block.text)
+        steps = read_operator_steps(path)
+    assert len(steps) == block.text.count("[[operator]]") == 3, steps
+    assert [s.at_s for s in steps] == [12.0, 20.0, 40.0], steps
+    runner.ran.append(f"docs/guide/virtual-terminal.md:{block.lineno}  "
+                      "[loaded by read_operator_steps]")
+
+
 DATA_CHECKS: dict[tuple[str, str], Callable[[DocRunner, Block], None]] = {
+    ("docs/guide/virtual-terminal.md", "toml"): check_vt_operator_example,
     ("docs/guide/isobus-network.md", "toml"): check_isobus_faults_example,
     ("docs/reference/record-format.md", "json"): check_record_example,
     ("docs/reference/baseline-format.md", "json"): check_baseline_example,
