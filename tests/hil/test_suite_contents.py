@@ -64,7 +64,6 @@ def test_full_adds_two_field_runs_on_the_depth_rig(tmp_path: Path) -> None:
     suites = collected("sowing_depth", tmp_path)
     assert sorted(suites["full"]) == ["test_depth_field[1-3]", "test_depth_field[5-7]"]
     assert "test_depth_field[3-5]" in suites["fast"]
-    assert "isobus" not in suites
     page = (ROOT / "docs" / "guide" / "suites.md").read_text(encoding="utf-8")
     assert "1-3 and 5-7 km/h**: two runs, no repeats" in page
     assert "**second and third repeats**" in page
