@@ -684,6 +684,9 @@ _SPECS = (
 )
 
 MEASUREMENTS: dict[str, MeasurementSpec] = {spec.name: spec for spec in _SPECS}
+#: the built-in catalogue's names: a rig of your own adds its measurements to MEASUREMENTS when
+#: its rig file is loaded (hil.ownrig.measurements), with the rig file's limits as defaults
+BUILT_IN: frozenset[str] = frozenset(MEASUREMENTS)
 
 #: the bus conformance checks, recorded for every run (CANopen and ISOBUS); the rest are the
 #: suites' control measurements

@@ -71,9 +71,14 @@ def register(plan: RigPlan) -> None:
         for m in measurements_of(c.unit):
             high = getattr(limits, m.limit_key) if m.limit_key else None
             name = measurement_name(plan.name, cname, m.suffix)
+            stated = f"rig file [controlled.{cname}.limits.{m.limit_key}]"
             MEASUREMENTS[name] = MeasurementSpec(
                 name, m.unit, plan.name, f"{cname}: {m.description}", high=high,
-                conditions=("scenario", "fault"))
+                conditions=("scenario", "fault"),
+                source=stated if high is not None else "",
+                information="" if high is not None else (
+                    f"no limit: the rig file states none ({stated})" if m.limit_key else
+                    "information: what the controller cannot change or the rig decides"))
 
 
 def limit_source(plan: RigPlan, name: str) -> str:
