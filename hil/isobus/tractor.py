@@ -43,6 +43,7 @@ import math
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
 
+from hil.errors import ConfigError
 from hil.isobus import ddi as dd
 from hil.isobus import process_data as pd
 from hil.isobus.ddop import DdopError, ObjectPool, PoolError
@@ -412,7 +413,39 @@ class Tractor:
         raw = max(implement.actual_rate.values())
         return raw / rx.unit.ddi_per_unit
 
+    # -- faults of a field run -----------------------------------------------------------------
+
+    def set_fault(self, name: str, active: bool, time_s: float) -> None:
+        """Inject or clear a fault the tractor plays in a field run (``tc_down``: the TC
+        powered off, and on again; ``tecu_silent``: the tractor ECU sends nothing).
+
+        Raises
+        ------
+        ConfigError
+            Another fault name (naming it).
+        """
+        if name == "tc_down":
+            if active:
+                self.tc.restart(time_s, down_s=math.inf)
+            else:
+                # powered again: it claims its address (ISO 11783-5) and then sends its status
+                self.tc_function.claimer.start(time_s)
+                self.tc.come_back(time_s)
+        elif name == "tecu_silent":
+            self.tecu.silent = active
+        else:
+            raise ConfigError(f"unknown fault {name!r}", key=name)
+
     # -- results -------------------------------------------------------------------------------
+
+    def run_record(self) -> dict[str, object]:
+        """The TC's events and the implements on the network, for a field run's truth."""
+        return {
+            "tc_events": [{"t": round(e.time_s, 6), "kind": e.kind.value,
+                           "address": e.address, "detail": e.detail} for e in self.tc.events],
+            "implements": {f"0x{a:02X}": f"0x{n:016X}"
+                           for a, n in self.network.external().items()},
+        }
 
     def as_applied(self, address: int | None = None) -> AsAppliedRecord | None:
         """The as-applied record of the implement at ``address`` (``None``: of the first

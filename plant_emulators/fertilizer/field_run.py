@@ -24,11 +24,9 @@ needs around it:
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from hil.errors import ConfigError
 from hil.isobus.field import Boom, Field, Pose, PrescriptionMap, load_field, load_prescription
 from hil.isobus.tractor import Tractor, TractorSetup, default_server_options
 from hil.rig.device import Device
@@ -149,23 +147,12 @@ class FieldRun:
 
     # --- faults ---------------------------------------------------------------------------
     def set_fault(self, name: str, active: bool, time_s: float) -> None:
-        """Inject or clear a :data:`FIELD_FAULTS` fault."""
-        if name == "tc_down":
-            if active:
-                self.tractor.tc.restart(time_s, down_s=math.inf)
-            else:
-                # powered again: it claims its address (ISO 11783-5) and then sends its status
-                self.tractor.tc_function.claimer.start(time_s)
-                self.tractor.tc.come_back(time_s)
-        elif name == "tecu_silent":
-            self.tractor.tecu.silent = active
-        else:
-            raise ConfigError(f"unknown fault {name!r}", key=name)
+        """Inject or clear a :data:`FIELD_FAULTS` fault (the tractor plays them)."""
+        self.tractor.set_fault(name, active, time_s)
 
     # --- record ---------------------------------------------------------------------------
     def truth(self) -> dict[str, object]:
         """What the suite needs besides the traces: geometry, files, the TC's events."""
-        tc = self.tractor.tc
         return {
             "boom": self.geometry.as_dict(),
             "field": self.run.field,
@@ -173,8 +160,5 @@ class FieldRun:
             **self._geojson,
             "drive_after_s": self.run.drive_after_s,
             "wheel_slip": self.run.wheel_slip,
-            "tc_events": [{"t": round(e.time_s, 6), "kind": e.kind.value,
-                           "address": e.address, "detail": e.detail} for e in tc.events],
-            "implements": {f"0x{a:02X}": f"0x{n:016X}"
-                           for a, n in self.tractor.network.external().items()},
+            **self.tractor.run_record(),
         }

@@ -120,21 +120,11 @@ class DepthFieldRun:
         return np.asarray(self.prescription.rate_at_local(east_m, north_m), dtype=float)
 
     def set_fault(self, name: str, active: bool, time_s: float) -> None:
-        """Inject or clear a :data:`DEPTH_FIELD_FAULTS` fault."""
-        if name == "tc_down":
-            if active:
-                self.tractor.tc.restart(time_s, down_s=math.inf)
-            else:
-                self.tractor.tc_function.claimer.start(time_s)
-                self.tractor.tc.come_back(time_s)
-        elif name == "tecu_silent":
-            self.tractor.tecu.silent = active
-        else:
-            raise ConfigError(f"unknown fault {name!r}", key=name)
+        """Inject or clear a :data:`DEPTH_FIELD_FAULTS` fault (the tractor plays them)."""
+        self.tractor.set_fault(name, active, time_s)
 
     def truth(self) -> dict[str, object]:
         """What the suite needs besides the traces: geometry, files, the TC's events."""
-        tc = self.tractor.tc
         return {
             "seed_line": self.seed_line.as_dict(),
             "field": self.run.field,
@@ -142,8 +132,5 @@ class DepthFieldRun:
             **self._geojson,
             "drive_after_s": self.run.drive_after_s,
             "wheel_slip": self.run.wheel_slip,
-            "tc_events": [{"t": round(e.time_s, 6), "kind": e.kind.value,
-                           "address": e.address, "detail": e.detail} for e in tc.events],
-            "implements": {f"0x{a:02X}": f"0x{n:016X}"
-                           for a, n in self.tractor.network.external().items()},
+            **self.tractor.run_record(),
         }
