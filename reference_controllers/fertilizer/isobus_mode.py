@@ -59,10 +59,8 @@ from hil.isobus import ddi as dd
 from hil.isobus.can_id import decode_id, make_frame
 from hil.isobus.ddop import ElementType, ObjectPool, PoolBuilder, TriggerMethod
 from hil.isobus.name import IsobusName
-from hil.isobus.network import IsobusNetwork
 from hil.isobus.port import GLOBAL_ADDRESS, Received
 from hil.isobus.process_data import PROCESS_DATA_PGN, WORKING_SET_MASTER_PGN, AckError
-from hil.isobus.tc_client import TaskControllerClient
 from hil.isobus.tecu import PGN_GROUND_BASED_SPEED, PGN_WHEEL_BASED_SPEED, iso11783_7_database
 from plant_emulators.fertilizer.config import FertilizerRigConfig, load_rig_config
 from reference_controllers.fertilizer.adapter import (
@@ -72,6 +70,8 @@ from reference_controllers.fertilizer.adapter import (
 )
 from reference_controllers.fertilizer.rows import FlowRows, Measurement
 from reference_controllers.fertilizer.speeds import MAX_VALID_SPEED_MPS
+from reference_controllers.isobus_implement import TcImplement, check_address
+from reference_controllers.isobus_implement import implement_name as shared_implement_name
 from reference_controllers.params import ParamError, ParamValue, field_names, override, split
 
 __all__ = ["SPEED_TIMEOUT_S", "IsobusFlowController", "IsobusParams", "implement_name",
@@ -151,12 +151,7 @@ class IsobusParams:
     claim_first: str = "yes"
 
     def __post_init__(self) -> None:
-        if not (self.address == int(self.address) and 0 <= self.address <= 0xFD):
-            raise ValueError(f"address must be an integer 0 .. 253, got {self.address}")
-        if not (self.identity_number == int(self.identity_number)
-                and 0 <= self.identity_number < 1 << 21):
-            raise ValueError(f"identity_number must be an integer below 2^21, "
-                             f"got {self.identity_number}")
+        check_address(self.address, self.identity_number)
         if not (math.isfinite(self.width_m) and 0.0 < self.width_m <= 30.0):
             raise ValueError(f"width_m must be within (0, 30] m, got {self.width_m}")
         if self.speed not in ("ground", "wheel"):
@@ -180,9 +175,8 @@ class IsobusParams:
 
 def implement_name(identity_number: int) -> IsobusName:
     """The controller's NAME: agriculture, fertilizers, rate control, self-configurable."""
-    return IsobusName(identity_number=identity_number, manufacturer_code=0,
-                      function=RATE_CONTROL_FUNCTION, device_class=DEVICE_CLASS_FERTILIZERS,
-                      industry_group=2, self_configurable=True)
+    return shared_implement_name(identity_number, device_class=DEVICE_CLASS_FERTILIZERS,
+                                 function=RATE_CONTROL_FUNCTION)
 
 
 @dataclass(frozen=True)
@@ -351,13 +345,14 @@ class IsobusFlowController(FlowController):
         self.pool, self.elements = meter_pool(
             name=self.implement_name.value, width_m=self.isobus.width_m, rows=self.row_count,
             latency_ms=self.latency_ms, broken=self.isobus.ddop == "broken")
-        self.network = IsobusNetwork(name=self.name)
-        self.port = self.network.add(self.implement_name, int(self.isobus.address),
-                                     "fertilizer meter")
-        self.client = TaskControllerClient(self.port, self.pool, on_setpoint=self._on_setpoint,
-                                           read_value=self._read_value,
-                                           on_connection=self._on_connection)
-        self.port.run(self.client)
+        self.implement = TcImplement(network_name=self.name, name=self.implement_name,
+                                     address=int(self.isobus.address), label="fertilizer meter",
+                                     pool=self.pool, on_setpoint=self._on_setpoint,
+                                     read_value=self._read_value,
+                                     on_connection=self._on_connection)
+        self.network = self.implement.network
+        self.port = self.implement.port
+        self.client = self.implement.client
         db = iso11783_7_database()
         self._speed_messages = {
             PGN_GROUND_BASED_SPEED: ("ground", db.get_message_by_name("GroundBasedSpeedDist"),
@@ -377,8 +372,6 @@ class IsobusFlowController(FlowController):
         #: source -> (time heard, speed m/s) of the TECU's valid speeds
         self.speed_heard: dict[str, tuple[float, float]] = {}
         self.setpoint = {"Mode": float(MODE_FIELD)}    # FlowController's view: field mode
-        #: what the network answered to frames received since the last step (sent with it)
-        self._replies: list[can.Message] = []
         #: reconnect = never, after the TC was lost
         self._gave_up = False
 
@@ -401,7 +394,7 @@ class IsobusFlowController(FlowController):
         if msg.is_extended_id:
             if self._gave_up and decode_id(msg.arbitration_id).pgn == PROCESS_DATA_PGN:
                 return []           # reconnect = never: deaf to the TC once it was lost
-            self._replies.extend(self.network.on_frame(msg, self.clock_s))
+            self.implement.receive(msg, self.clock_s)
             return []
         if msg.arbitration_id == SYNC_ID:
             return self.step() if self.step_on_sync else []
@@ -534,6 +527,4 @@ class IsobusFlowController(FlowController):
         """Send what the network answered since the last step and what is due at this step's
         time, then run the law; the analog command stays the step's last frame."""
         self.clock_s = self.steps * self.adapter_params.period_s
-        isobus = self._replies + self.network.emit(self.clock_s)
-        self._replies = []
-        return isobus + super().step()
+        return self.implement.take(self.clock_s) + super().step()

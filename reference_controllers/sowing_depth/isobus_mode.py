@@ -45,10 +45,10 @@ from hil.isobus import ddi as dd
 from hil.isobus.can_id import decode_id, make_frame
 from hil.isobus.ddop import ElementType, ObjectPool, PoolBuilder, TriggerMethod
 from hil.isobus.name import IsobusName
-from hil.isobus.network import IsobusNetwork
 from hil.isobus.process_data import AckError
-from hil.isobus.tc_client import TaskControllerClient
 from plant_emulators.sowing_depth.config import SowingDepthRigConfig, load_rig_config
+from reference_controllers.isobus_implement import TcImplement, check_address
+from reference_controllers.isobus_implement import implement_name as shared_implement_name
 from reference_controllers.params import ParamError, ParamValue, field_names, override, split
 from reference_controllers.sowing_depth.adapter import DepthController
 
@@ -84,12 +84,7 @@ class IsobusDepthParams:
     fallback: str = "default"
 
     def __post_init__(self) -> None:
-        if not (self.address == int(self.address) and 0 <= self.address <= 0xFD):
-            raise ValueError(f"address must be an integer 0 .. 253, got {self.address}")
-        if not (self.identity_number == int(self.identity_number)
-                and 0 <= self.identity_number < 1 << 21):
-            raise ValueError(f"identity_number must be an integer below 2^21, "
-                             f"got {self.identity_number}")
+        check_address(self.address, self.identity_number)
         if not (0.0 < self.min_depth_mm <= self.default_depth_mm <= self.max_depth_mm <= 100.0):
             raise ValueError(f"need 0 < min_depth_mm <= default_depth_mm <= max_depth_mm <= "
                              f"100, got {self.min_depth_mm}, {self.default_depth_mm}, "
@@ -148,9 +143,8 @@ def depth_pool(*, name: int, width_m: float, offset_x_mm: int, params: IsobusDep
 
 def implement_name(identity_number: int) -> IsobusName:
     """The controller's NAME: agriculture, planters/seeders, self-configurable."""
-    return IsobusName(identity_number=identity_number, manufacturer_code=0,
-                      function=SEEDER_FUNCTION, device_class=DEVICE_CLASS_PLANTERS,
-                      industry_group=2, self_configurable=True)
+    return shared_implement_name(identity_number, device_class=DEVICE_CLASS_PLANTERS,
+                                 function=SEEDER_FUNCTION)
 
 
 class IsobusDepthController(DepthController):
@@ -181,20 +175,20 @@ class IsobusDepthController(DepthController):
             width_m=machine.rows * machine.row_spacing_mm / 1000.0,
             offset_x_mm=-round(machine.tractor_rear_axle_ahead_of_seed_m * 1000),
             params=self.isobus)
-        self.isobus_network = IsobusNetwork(name=self.name)
-        self.port = self.isobus_network.add(self.implement_name, int(self.isobus.address),
-                                     "depth seeder")
-        self.client = TaskControllerClient(self.port, self.pool, on_setpoint=self._on_setpoint,
-                                           read_value=self._read_value,
-                                           on_connection=self._on_connection)
-        self.port.run(self.client)
+        # the CANopen side's OutboxNetwork is self.network: the ISOBUS one is the implement's
+        self.implement = TcImplement(network_name=self.name, name=self.implement_name,
+                                     address=int(self.isobus.address), label="depth seeder",
+                                     pool=self.pool, on_setpoint=self._on_setpoint,
+                                     read_value=self._read_value,
+                                     on_connection=self._on_connection)
+        self.port = self.implement.port
+        self.client = self.implement.client
         #: the TC's depth (mm), None until it sends one on this connection
         self.tc_depth_mm: float | None = None
         # the implement works automatically: the TC's depth, else the declared default
         self.terminal_on = True
         self.automatic = True
         self.target_mm = self.isobus.default_depth_mm
-        self._replies: list[can.Message] = []
 
     # --- frames in ----------------------------------------------------------------------
     def on_frame(self, msg: can.Message) -> list[can.Message]:
@@ -204,7 +198,7 @@ class IsobusDepthController(DepthController):
         if msg.is_error_frame or msg.is_remote_frame:
             return []
         if msg.is_extended_id:
-            self._replies.extend(self.isobus_network.on_frame(msg, self.now_s))
+            self.implement.receive(msg, self.now_s)
             if msg.arbitration_id == self.ids["setpoint"]:
                 return []
         return super().on_frame(msg)
@@ -251,9 +245,7 @@ class IsobusDepthController(DepthController):
     def step(self) -> list[can.Message]:
         """What the network answered since the last step and what is due now, then the law
         (the drive's command stays the step's last frame)."""
-        now = self.now_s
-        isobus = self._replies + self.isobus_network.emit(now)
-        self._replies = []
+        isobus = self.implement.take(self.now_s)
         self.target_mm = self.current_target_mm()
         own = [self._own(m) for m in super().step()]
         return isobus + [m for m in own if m is not None]
