@@ -1,9 +1,11 @@
 #include "iso_fert.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <string.h>
 
 #include "fertilizer.h"
+#include "iso_pool.h"
 
 #define SYNC_ID 0x080u
 #define FLOW_MODULE1_ID 0x181u
@@ -17,6 +19,9 @@
 #define DEVICE_CLASS_FERTILIZERS 5u
 #define INDUSTRY_GROUP_AGRICULTURE 2u
 #define SPEED_SLACK_S 1e-9
+#define STALE_SLACK_S 1e-9 /* as apps/fertilizer_adapter.c's row validity */
+#define ROW_RATE_MIN_SPEED_MPS 0.05
+#define TIME_SLACK_S 1e-9
 enum { GROUND = 0, WHEEL = 1 };
 
 void iso_fert_config_defaults(iso_fert_config_t *cfg, ppid_law_t law)
@@ -39,8 +44,39 @@ size_t iso_fert_param_refs(iso_fert_config_t *cfg, param_ref_t refs[ISO_FERT_PAR
     return n;
 }
 
+static const char *const VT_DEFECTS[] = {"", "ignores-master", "no-alarm", "bad-pool",
+                                          "no-reconnect", "meters-without-vt"};
+
+int iso_fert_vt_param(iso_fert_config_t *cfg, const char *key, const char *value,
+                      const char **why)
+{
+    if (param_name_equal(key, "vt")) {
+        if (strcmp(value, "yes") != 0 && strcmp(value, "no") != 0) {
+            *why = "parameter 'vt' must be yes or no";
+            return -1;
+        }
+        cfg->vt = strcmp(value, "yes") == 0;
+        return 1;
+    }
+    if (param_name_equal(key, "vt_defect")) {
+        for (size_t i = 0; i < sizeof VT_DEFECTS / sizeof VT_DEFECTS[0]; i++) {
+            if (strcmp(value, VT_DEFECTS[i]) == 0) {
+                cfg->vt_defect = (iso_vt_defect_t)i;
+                return 1;
+            }
+        }
+        *why = "parameter 'vt_defect' must be one of '', 'ignores-master', 'no-alarm', "
+               "'bad-pool', 'no-reconnect', 'meters-without-vt'";
+        return -1;
+    }
+    return 0;
+}
+
 const char *iso_fert_check(const iso_fert_config_t *cfg)
 {
+    if (cfg->vt_defect != ISO_VT_DEFECT_NONE && !cfg->vt) {
+        return "vt_defect needs the operator interface (vt=yes)";
+    }
     if (!(cfg->address == floor(cfg->address) && cfg->address >= 0.0 && cfg->address <= 253.0)) {
         return "address must be an integer 0 .. 253";
     }
@@ -101,6 +137,11 @@ static int active_rows(const iso_fert_t *c)
 bool iso_fert_metering(const iso_fert_t *c)
 {
     double v;
+    /* with its operator interface: only with its pool active on a VT and Master on */
+    if (c->cfg.vt && c->cfg.vt_defect != ISO_VT_DEFECT_METERS_WITHOUT_VT &&
+        !(vtc_connected(&c->vt) && c->master_on)) {
+        return false;
+    }
     return tcc_connected(&c->tc) && c->rate_kg_ha > 0.0 &&
            (c->work_state == -1 || c->work_state == 1) && active_rows(c) > 0 &&
            iso_fert_ground_speed(c, &v, NULL);
@@ -245,7 +286,11 @@ static void deliver(void *ctx, uint32_t pgn, const uint8_t *data, size_t len, ui
                     uint8_t destination, double now_s)
 {
     iso_fert_t *c = ctx;
-    if (pgn == PGN_GROUND_BASED_SPEED) {
+    if (pgn == ISO_PGN_VT_TO_ECU) {
+        if (c->cfg.vt) {
+            vtc_on_group(&c->vt, pgn, data, len, source, destination, now_s);
+        }
+    } else if (pgn == PGN_GROUND_BASED_SPEED) {
         on_speed(c, GROUND, data, len, now_s);
     } else if (pgn == PGN_WHEEL_BASED_SPEED) {
         on_speed(c, WHEEL, data, len, now_s);
@@ -275,6 +320,134 @@ static void python_rounded_status(hal_can_frame_t *f, const fert_step_info_t *in
     fertilizer_controller_status_pack(f->data, &st, sizeof f->data);
 }
 
+/* --- the operator (isobus_vt.py) ----------------------------------------------------------- */
+
+static void on_key(void *ctx, uint16_t object_id, uint16_t parent_id, uint8_t key_code,
+                   uint8_t activation, bool button)
+{
+    iso_fert_t *c = ctx;
+    (void)parent_id;
+    (void)key_code;
+    (void)button;
+    if (activation != ISO_VT_KEY_RELEASED) {
+        return;
+    }
+    if (object_id == ISO_POOL_KEY_MASTER) {
+        c->master_on = !c->master_on || c->cfg.vt_defect == ISO_VT_DEFECT_IGNORES_MASTER;
+        vtc_change_string_value(&c->vt, ISO_POOL_MASTER_VAR,
+                                (const uint8_t *)(c->master_on ? "ON " : "OFF"), 3);
+    } else if (object_id == ISO_POOL_KEY_CALIBRATION) {
+        vtc_change_active_mask(&c->vt, ISO_POOL_WORKING_SET, ISO_POOL_CALIBRATION);
+    } else if (object_id == ISO_POOL_KEY_BACK || object_id == ISO_POOL_KEY_ACK) {
+        c->alarm_row = 0;
+        vtc_change_active_mask(&c->vt, ISO_POOL_WORKING_SET, ISO_POOL_RUN);
+    }
+}
+
+/* the calibration test entered on the VT: the feedforward map's coefficient from then on (the
+ * MeterCalibration frame's expression); a test without a usable coefficient changes nothing */
+static void on_number(void *ctx, uint16_t object_id, uint32_t value)
+{
+    iso_fert_t *c = ctx;
+    double grams = c->cal_grams, rpm = c->cal_rpm;
+    if (object_id == ISO_POOL_CAL_GRAMS_IN) {
+        grams = (double)value / 10.0;
+    } else if (object_id == ISO_POOL_CAL_RPM_IN) {
+        rpm = (double)value / 10.0;
+    } else {
+        return;
+    }
+    c->cal_grams = grams;
+    c->cal_rpm = rpm;
+    ppid_params_t *p = &c->adapter.cfg.core;
+    double coeff = fert_ff_coeff_from_test(grams, rpm, p->ff_exponent, p->ff_linear_below_rpm);
+    if (coeff > 0.0) {
+        p->ff_coeff = coeff;
+    }
+}
+
+/* IsobusFlowController.target_gps: 0.1 M (D_active) v / active rows, 0 when not metering */
+static double target_gps(const iso_fert_t *c)
+{
+    double v;
+    if (!iso_fert_ground_speed(c, &v, NULL) || !iso_fert_metering(c)) {
+        return 0.0;
+    }
+    double rows = (double)active_rows(c);
+    return 0.1 * c->rate_kg_ha * (rows * c->row_width_m) * v / rows;
+}
+
+static double row_rate_kg_ha(const iso_fert_t *c, int i)
+{
+    double v;
+    const fert_row_t *r = &c->adapter.rows[i];
+    if (!iso_fert_ground_speed(c, &v, NULL) || v < ROW_RATE_MIN_SPEED_MPS || !r->seen ||
+        !iso_fert_metering(c)) {
+        return 0.0;
+    }
+    return fmax(0.0, r->flow_gps / (0.1 * c->row_width_m * v));
+}
+
+/* the Run mask's values, those that changed */
+static void refresh(iso_fert_t *c)
+{
+    for (int k = 0; k <= FERT_ROWS; k++) {
+        double value = k == 0 ? c->rate_kg_ha * 10 : row_rate_kg_ha(c, k - 1) * 10;
+        int64_t shown = (int64_t)rint(value);
+        if (!c->shown_set[k] || c->shown[k] != shown) {
+            c->shown_set[k] = true;
+            c->shown[k] = shown;
+            unsigned var = k == 0 ? ISO_POOL_RATE_VAR : ISO_POOL_ROW_VAR_1 + (unsigned)k - 1u;
+            vtc_change_numeric_value(&c->vt, (uint16_t)var, (uint32_t)shown);
+        }
+    }
+}
+
+/* rows.py FlowRows.valid at the step just run */
+static bool row_valid(const iso_fert_t *c, const fert_row_t *r, double target)
+{
+    return r->baseline_ready && !r->overrange &&
+           c->clock_s - r->at_s <= c->cfg.fert.stale_after_s + STALE_SLACK_S &&
+           r->flow_gps <= 3.0 * target + 5.0;
+}
+
+/* a row switched on whose flow is lost (no valid report, or left out by the cross-row check)
+ * for ISO_FERT_ALARM_AFTER_S while metering raises the Alarm mask; once per loss */
+static void watch_rows(iso_fert_t *c)
+{
+    double target = target_gps(c);
+    bool metering = iso_fert_metering(c) && target > 0.0;
+    double now = c->clock_s;
+    for (int i = 0; i < FERT_ROWS; i++) {
+        const fert_row_t *r = &c->adapter.rows[i];
+        bool lost = metering && c->sections[i] &&
+                    (!r->seen || !row_valid(c, r, target) || c->adapter.xrow.out[i]);
+        if (!lost) {
+            c->lost[i] = false;
+            c->alarmed[i] = false;
+            continue;
+        }
+        if (!c->lost[i]) {
+            c->lost[i] = true;
+            c->lost_since[i] = now;
+        }
+        if (now - c->lost_since[i] >= ISO_FERT_ALARM_AFTER_S - TIME_SLACK_S && !c->alarmed[i] &&
+            c->cfg.vt_defect != ISO_VT_DEFECT_NO_ALARM) {
+            c->alarmed[i] = true;
+            c->alarm_row = i + 1;
+            char text[ISO_POOL_ALARM_TEXT_LENGTH + 1];
+            memset(text, ' ', sizeof text);
+            int n = snprintf(text, sizeof text, "Row %d: flow lost", i + 1);
+            if (n >= 0 && (size_t)n < sizeof text) {
+                text[n] = ' '; /* padded with spaces, as str.ljust */
+            }
+            vtc_change_string_value(&c->vt, ISO_POOL_ALARM_VAR, (const uint8_t *)text,
+                                    ISO_POOL_ALARM_TEXT_LENGTH);
+            vtc_change_active_mask(&c->vt, ISO_POOL_WORKING_SET, ISO_POOL_ALARM);
+        }
+    }
+}
+
 /* --- set-up and frames ------------------------------------------------------------------------- */
 
 int iso_fert_init(iso_fert_t *c, const iso_fert_config_t *cfg)
@@ -299,6 +472,17 @@ int iso_fert_init(iso_fert_t *c, const iso_fert_config_t *cfg)
     iso_net_init(&c->net, c->name, (uint8_t)cfg->address, deliver, c);
     tcc_implement_t impl = {c, on_setpoint, read_value, on_connection};
     tcc_init(&c->tc, &c->net, &c->pool, impl, write_pool);
+    if (cfg->vt) {
+        static uint8_t vt_pool[ISO_POOL_MAX_BYTES];
+        size_t size = 0;
+        vtc_implement_t hooks = {c, on_key, on_number};
+        if (iso_vt_pool(FERT_ROWS, cfg->vt_defect == ISO_VT_DEFECT_BAD_POOL, vt_pool,
+                        sizeof vt_pool, &size) != 0 ||
+            vtc_init(&c->vt, &c->net, vt_pool, size, ISO_POOL_VERSION_LABEL, hooks) != 0) {
+            return -1;
+        }
+        c->cal_rpm = 21.0;
+    }
     return 0;
 }
 
@@ -317,9 +501,15 @@ static size_t take_network_frames(iso_fert_t *c)
 
 size_t iso_fert_step(iso_fert_t *c)
 {
+    if (c->cfg.vt_defect == ISO_VT_DEFECT_NO_RECONNECT && c->vt.has_connected_s) {
+        vtc_forget_status(&c->vt); /* never notices the VT is gone */
+    }
     c->clock_s = (double)c->steps * c->cfg.fert.period_s;
     iso_net_poll(&c->net, c->clock_s);
     tcc_tick(&c->tc, c->clock_s);
+    if (c->cfg.vt) {
+        vtc_tick(&c->vt, c->clock_s);
+    }
     size_t n = take_network_frames(c); /* the replies since the last step, then the due ones */
     /* the adapter's field mode with the TC's rate, the active rows' width and the speed */
     fert_setpoint_t *sp = &c->adapter.setpoint;
@@ -343,6 +533,14 @@ size_t iso_fert_step(iso_fert_t *c)
         }
     }
     c->steps++;
+    if (c->cfg.vt && vtc_connected(&c->vt)) {
+        /* what the operator sees: queued now, sent from the next step on */
+        watch_rows(c);
+        if (c->clock_s >= c->next_display_s - TIME_SLACK_S) {
+            c->next_display_s = c->clock_s + ISO_FERT_DISPLAY_PERIOD_S;
+            refresh(c);
+        }
+    }
     c->nout = n;
     return n;
 }

@@ -33,12 +33,27 @@
 #include "iso_ddop.h"
 #include "iso_net.h"
 #include "iso_tc.h"
+#include "iso_vt.h"
 
 #define ISO_FERT_MAX_OUT (ISO_NET_MAX_OUT + FERT_MAX_OUT)
 #define ISO_FERT_PARAM_COUNT (FERT_COMMON_PARAM_COUNT + 3)
 #define ISO_FERT_LATENCY_MS 430 /* the rig's meter-to-furrow delay, 0.08 s + 0.35 s (the
                                  * Python takes it from the rig configuration) */
 #define ISO_FERT_SPEED_TIMEOUT_S 0.3
+
+/* vt_defect (reference_controllers/fertilizer/isobus_vt.py DEFECTS): the must-fail implements
+ * made of the reference */
+typedef enum {
+    ISO_VT_DEFECT_NONE,
+    ISO_VT_DEFECT_IGNORES_MASTER,    /* Master off does not stop it */
+    ISO_VT_DEFECT_NO_ALARM,          /* never raises the lost row's alarm */
+    ISO_VT_DEFECT_BAD_POOL,          /* a pool the VT refuses (a font that is not there) */
+    ISO_VT_DEFECT_NO_RECONNECT,      /* never notices the VT went away */
+    ISO_VT_DEFECT_METERS_WITHOUT_VT  /* meters without its pool active and Master on */
+} iso_vt_defect_t;
+
+#define ISO_FERT_ALARM_AFTER_S 1.0   /* a row's flow lost this long while metering: alarm */
+#define ISO_FERT_DISPLAY_PERIOD_S 1.0 /* the Run mask's values refreshed (changed ones only) */
 
 typedef struct {
     fert_config_t fert;     /* law, gains, stale_after_s, period_s */
@@ -48,6 +63,8 @@ typedef struct {
     bool speed_wheel;       /* speed=wheel: PGN 65096 only (the must-fail variant) */
     bool ddop_broken;       /* ddop=broken: a DDOP a strict TC refuses (the must-fail variant) */
     bool step_on_sync;      /* one control step per SYNC 0x080 (lockstep) */
+    bool vt;                /* vt=yes: the operator interface on a VT (isobus_vt.py) */
+    iso_vt_defect_t vt_defect; /* vt_defect=...: a must-fail implement (none: the reference) */
 } iso_fert_config_t;
 
 typedef struct {
@@ -68,6 +85,17 @@ typedef struct {
     double heard_mps[2];
     hal_can_frame_t out[ISO_FERT_MAX_OUT];
     size_t nout;
+    /* the operator interface (cfg.vt) */
+    vtc_t vt;
+    bool master_on;             /* the operator's Master (off at power-up) */
+    double cal_grams, cal_rpm;  /* the calibration test entered on the VT */
+    int alarm_row;              /* the row whose alarm is shown, 0: none */
+    bool shown_set[1 + FERT_ROWS];
+    int64_t shown[1 + FERT_ROWS]; /* what the Run mask shows: rate, then each row (x 10) */
+    double next_display_s;
+    bool lost[FERT_ROWS];
+    double lost_since[FERT_ROWS];
+    bool alarmed[FERT_ROWS];
 } iso_fert_t;
 
 void iso_fert_config_defaults(iso_fert_config_t *cfg, ppid_law_t law);
@@ -75,6 +103,12 @@ void iso_fert_config_defaults(iso_fert_config_t *cfg, ppid_law_t law);
 /* Named numeric parameters: the fertilizer adapter's and address, identity_number, width_m
  * (speed= and ddop= are words: the program reads them). */
 size_t iso_fert_param_refs(iso_fert_config_t *cfg, param_ref_t refs[ISO_FERT_PARAM_COUNT]);
+
+/* The operator interface's word parameters: vt=yes|no, vt_defect=NAME (isobus_vt.py's names;
+ * empty: the reference). Returns 1 when taken, 0 for another key, -1 for a bad value (with
+ * *why naming it). */
+int iso_fert_vt_param(iso_fert_config_t *cfg, const char *key, const char *value,
+                      const char **why);
 
 /* Check the ISOBUS parameters: NULL when valid, else a message naming the parameter. */
 const char *iso_fert_check(const iso_fert_config_t *cfg);

@@ -136,19 +136,39 @@ static void on_claim(iso_net_t *n, uint8_t source, uint64_t name)
 
 /* --- TP sender ------------------------------------------------------------------------------- */
 
-static void tp_cm(iso_net_t *n, const uint8_t body[5])
+static void tp_cm(iso_net_t *n, const iso_tp_sender_t *s, const uint8_t body[5])
 {
-    const iso_tp_sender_t *s = &n->tp;
     uint8_t data[8] = {body[0], body[1], body[2], body[3], body[4], (uint8_t)(s->pgn & 0xFFu),
                        (uint8_t)((s->pgn >> 8) & 0xFFu), (uint8_t)((s->pgn >> 16) & 0xFFu)};
     emit(n, TP_PRIORITY, ISO_PGN_TP_CM, s->source, s->destination, data, 8);
 }
 
-static void tp_start(iso_net_t *n, const iso_group_t *g, uint8_t source)
+/* the open session to `destination`, or NULL */
+static iso_tp_sender_t *tp_to(iso_net_t *n, uint8_t destination)
 {
-    iso_tp_sender_t *s = &n->tp;
+    for (size_t i = 0; i < ISO_NET_TP_SENDERS; i++) {
+        if (n->tp[i].open && n->tp[i].destination == destination) {
+            return &n->tp[i];
+        }
+    }
+    return NULL;
+}
+
+static iso_tp_sender_t *tp_free(iso_net_t *n)
+{
+    for (size_t i = 0; i < ISO_NET_TP_SENDERS; i++) {
+        if (!n->tp[i].open) {
+            return &n->tp[i];
+        }
+    }
+    return NULL;
+}
+
+static void tp_start(iso_net_t *n, iso_tp_sender_t *s, const iso_group_t *g, uint8_t source)
+{
     memset(s, 0, sizeof *s);
     s->open = true;
+    s->order = n->tp_started++;
     s->pgn = g->pgn;
     s->source = source;
     s->destination = g->destination;
@@ -159,32 +179,46 @@ static void tp_start(iso_net_t *n, const iso_group_t *g, uint8_t source)
     s->next_packet = 1;
     uint8_t rts[5] = {CM_RTS, (uint8_t)(s->size & 0xFFu), (uint8_t)(s->size >> 8),
                       (uint8_t)s->total, 0xFF};
-    tp_cm(n, rts);
+    tp_cm(n, s, rts);
     s->waiting = TP_WAIT_CTS;
     s->deadline = n->now + TP_T3_S;
 }
 
-static void tp_end(iso_net_t *n)
+/* Start what waits for a session: the groups to peers with none open, in queue order. */
+static void tp_start_waiting(iso_net_t *n, uint8_t source)
 {
-    n->tp.open = false;
-    if (n->ntp_queue > 0) {
-        iso_group_t next = n->tp_queue[0];
-        memmove(&n->tp_queue[0], &n->tp_queue[1], (n->ntp_queue - 1) * sizeof next);
+    size_t i = 0;
+    while (i < n->ntp_queue) {
+        iso_tp_sender_t *s = tp_free(n);
+        if (s == NULL) {
+            return;
+        }
+        if (tp_to(n, n->tp_queue[i].destination) != NULL) {
+            i++;
+            continue;
+        }
+        iso_group_t next = n->tp_queue[i];
+        memmove(&n->tp_queue[i], &n->tp_queue[i + 1], (n->ntp_queue - i - 1) * sizeof next);
         n->ntp_queue--;
-        tp_start(n, &next, n->tp.source);
+        tp_start(n, s, &next, source);
     }
 }
 
-static void tp_abort(iso_net_t *n, uint8_t reason)
+static void tp_end(iso_net_t *n, iso_tp_sender_t *s)
 {
-    uint8_t body[5] = {CM_ABORT, reason, 0xFF, 0xFF, 0xFF};
-    tp_cm(n, body);
-    tp_end(n);
+    s->open = false;
+    tp_start_waiting(n, s->source);
 }
 
-static void tp_on_cts(iso_net_t *n, uint8_t packets, uint8_t next)
+static void tp_abort(iso_net_t *n, iso_tp_sender_t *s, uint8_t reason)
 {
-    iso_tp_sender_t *s = &n->tp;
+    uint8_t body[5] = {CM_ABORT, reason, 0xFF, 0xFF, 0xFF};
+    tp_cm(n, s, body);
+    tp_end(n, s);
+}
+
+static void tp_on_cts(iso_net_t *n, iso_tp_sender_t *s, uint8_t packets, uint8_t next)
+{
     if (packets == 0) {
         s->waiting = TP_HELD;
         s->deadline = n->now + TP_T4_S;
@@ -192,13 +226,13 @@ static void tp_on_cts(iso_net_t *n, uint8_t packets, uint8_t next)
     }
     unsigned last = (unsigned)next + packets - 1u;
     if (next < 1 || last > s->total) {
-        tp_abort(n, ABORT_OTHER);
+        tp_abort(n, s, ABORT_OTHER);
         return;
     }
     if (next < s->next_packet) {
         s->retransmits++;
         if (s->retransmits > TP_MAX_RETRANSMITS) {
-            tp_abort(n, ABORT_MAX_RETRANSMIT);
+            tp_abort(n, s, ABORT_MAX_RETRANSMIT);
             return;
         }
     }
@@ -385,8 +419,8 @@ static void tp_on_cm(iso_net_t *n, bool extended, const uint8_t *d, size_t len, 
         return;
     }
     uint32_t pgn = (uint32_t)d[5] | ((uint32_t)d[6] << 8) | ((uint32_t)d[7] << 16);
-    iso_tp_sender_t *s = &n->tp;
-    bool mine = s->open && s->source == destination && s->destination == source;
+    iso_tp_sender_t *s = tp_to(n, source);
+    bool mine = s != NULL && s->source == destination;
     iso_tp_receiver_t *theirs = rx_find(n, source, destination);
     switch (c) {
     case CM_RTS:
@@ -400,18 +434,18 @@ static void tp_on_cm(iso_net_t *n, bool extended, const uint8_t *d, size_t len, 
         break;
     case CM_CTS:
         if (mine && pgn == s->pgn) {
-            tp_on_cts(n, d[1], d[2]);
+            tp_on_cts(n, s, d[1], d[2]);
         }
         break;
     case CM_EOMA:
     case CM_ETP_EOMA:
         if (mine && pgn == s->pgn) {
-            tp_end(n);
+            tp_end(n, s);
         }
         break;
     case CM_ABORT:
         if (mine && pgn == s->pgn) {
-            tp_end(n);
+            tp_end(n, s);
         }
         if (theirs != NULL && theirs->pgn == pgn && !theirs->bam) {
             theirs->open = false;
@@ -424,8 +458,24 @@ static void tp_on_cm(iso_net_t *n, bool extended, const uint8_t *d, size_t len, 
 
 static void tp_poll(iso_net_t *n)
 {
-    if (n->tp.open && n->tp.deadline <= n->now) {
-        tp_abort(n, ABORT_TIMEOUT);
+    /* the sessions open now, in the order they started (a session one of them hands over to
+     * is not timed out in this poll) */
+    iso_tp_sender_t *open[ISO_NET_TP_SENDERS];
+    size_t nopen = 0;
+    for (size_t i = 0; i < ISO_NET_TP_SENDERS; i++) {
+        if (n->tp[i].open) {
+            size_t at = nopen++;
+            while (at > 0 && open[at - 1]->order > n->tp[i].order) {
+                open[at] = open[at - 1];
+                at--;
+            }
+            open[at] = &n->tp[i];
+        }
+    }
+    for (size_t i = 0; i < nopen; i++) {
+        if (open[i]->open && open[i]->deadline <= n->now) {
+            tp_abort(n, open[i], ABORT_TIMEOUT);
+        }
     }
     for (size_t i = 0; i < ISO_NET_RX_SESSIONS; i++) {
         iso_tp_receiver_t *r = &n->rx[i];
@@ -447,14 +497,14 @@ static void flush(iso_net_t *n)
         const iso_group_t *g = &n->queue[i];
         if (g->big == NULL) {
             emit(n, g->priority, g->pgn, (uint8_t)source, g->destination, g->data, g->len);
-        } else if (n->tp.open) {
+        } else if (tp_to(n, g->destination) != NULL || tp_free(n) == NULL) {
             if (n->ntp_queue < ISO_NET_TP_QUEUE) {
                 n->tp_queue[n->ntp_queue++] = *g;
             } else {
                 n->dropped++;
             }
         } else {
-            tp_start(n, g, (uint8_t)source);
+            tp_start(n, tp_free(n), g, (uint8_t)source);
         }
     }
     n->nqueue = 0;
@@ -480,6 +530,21 @@ void iso_net_send(iso_net_t *n, uint32_t pgn, const uint8_t *data, size_t len,
         g->big_len = (uint16_t)len;
     }
     flush(n);
+}
+
+bool iso_net_busy(const iso_net_t *n)
+{
+    for (size_t i = 0; i < ISO_NET_TP_SENDERS; i++) {
+        if (n->tp[i].open) {
+            return true;
+        }
+    }
+    for (size_t i = 0; i < ISO_NET_RX_SESSIONS; i++) {
+        if (n->rx[i].open) {
+            return true;
+        }
+    }
+    return n->ntp_queue > 0;
 }
 
 /* --- time and frames in ---------------------------------------------------------------------- */

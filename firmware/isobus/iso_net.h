@@ -21,8 +21,9 @@
  * (RTS with "no limit" 0xFF packets per CTS; every packet a CTS asks for at once; T3 = 1.25 s
  * for the next CTS or the end-of-message acknowledgement, T4 = 1.05 s after a hold; a timeout
  * aborts with reason 3; a CTS beyond the message aborts with 250, a third retransmission
- * request with 5). A second long group to the same peer waits for the first
- * (ISO_NET_TP_QUEUE). Not implemented (the controller sends none): BAM, ETP.
+ * request with 5). Up to ISO_NET_TP_SENDERS sessions at once, each to another peer (the TC's
+ * DDOP and the VT's pool may go at the same time); a second long group to the same peer waits
+ * for the first (ISO_NET_TP_QUEUE). Not implemented (the controller sends none): BAM, ETP.
  *
  * Receiving: TP RTS/CTS (at most 16 packets per CTS, or the RTS's limit; T2 = 1.25 s for the
  * first packet after a CTS, T1 = 0.75 s between packets; out of order: abort 7, a repeat: 8,
@@ -48,6 +49,7 @@
 #define ISO_NET_MAX_OUT 320 /* frames one call can produce: a CTS window of 255 packets + more */
 #define ISO_NET_QUEUE 16    /* groups held while the claim settles */
 #define ISO_NET_TP_QUEUE 2  /* long groups waiting for the TP session to the same peer */
+#define ISO_NET_TP_SENDERS 2 /* TP sends at once, each to another peer (a TC's, a VT's) */
 #define ISO_NET_RX_SESSIONS 4 /* TP and BAM groups being received at once */
 
 #define ISO_PGN_REQUEST 0xEA00u
@@ -83,6 +85,7 @@ typedef struct {
     uint8_t retransmits;
     iso_tp_wait_t waiting;
     double deadline;
+    uint32_t order; /* when it started: timeouts are checked in start order, as the Python */
 } iso_tp_sender_t;
 
 typedef struct {
@@ -115,7 +118,8 @@ typedef struct {
     iso_group_t queue[ISO_NET_QUEUE];
     size_t nqueue;
     uint32_t dropped; /* groups lost to a full queue (not expected: a count for the logs) */
-    iso_tp_sender_t tp;
+    iso_tp_sender_t tp[ISO_NET_TP_SENDERS];
+    uint32_t tp_started;
     iso_group_t tp_queue[ISO_NET_TP_QUEUE];
     size_t ntp_queue;
     iso_tp_receiver_t rx[ISO_NET_RX_SESSIONS];
@@ -140,6 +144,10 @@ void iso_net_send(iso_net_t *n, uint32_t pgn, const uint8_t *data, size_t len,
 
 /* Advance to now_s: start the claim, settle it, send what waited, time out TP. */
 void iso_net_poll(iso_net_t *n, double now_s);
+
+/* Whether a TP session is open (either way) or a long group waits for one (the Python
+ * TransportLayer.busy(): a VT client sends its next pool transfer only when it is not). */
+bool iso_net_busy(const iso_net_t *n);
 
 /* Take one extended frame from the bus, stamped now_s. */
 void iso_net_on_frame(iso_net_t *n, const hal_can_frame_t *frame, double now_s);

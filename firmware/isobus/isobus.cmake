@@ -5,7 +5,8 @@ set(ISOBUS_DIR ${CMAKE_CURRENT_SOURCE_DIR}/isobus)
 
 # pure logic: frames in + step count -> frames out (no I/O, no clock, no allocation)
 add_library(agrihil_isobus STATIC ${ISOBUS_DIR}/iso_ddop.c ${ISOBUS_DIR}/iso_net.c
-            ${ISOBUS_DIR}/iso_tc.c ${ISOBUS_DIR}/iso_fert.c)
+            ${ISOBUS_DIR}/iso_tc.c ${ISOBUS_DIR}/iso_fert.c
+            ${ISOBUS_DIR}/iso_pool.c ${ISOBUS_DIR}/iso_vt.c)
 target_include_directories(agrihil_isobus PUBLIC ${ISOBUS_DIR})
 target_link_libraries(agrihil_isobus PUBLIC agrihil_adapters)
 
@@ -18,6 +19,8 @@ add_executable(replay_isobus ${ISOBUS_DIR}/replay_isobus.c)
 target_link_libraries(replay_isobus PRIVATE agrihil_isobus)
 add_executable(test_iso_ddop ${ISOBUS_DIR}/test_iso_ddop.c)
 target_link_libraries(test_iso_ddop PRIVATE agrihil_isobus)
+add_executable(test_iso_pool ${ISOBUS_DIR}/test_iso_pool.c)
+target_link_libraries(test_iso_pool PRIVATE agrihil_isobus)
 
 if(BUILD_TESTING)
   # the shared vectors of the Python build: every frame the C controller sends must be the
@@ -69,4 +72,24 @@ if(BUILD_TESTING)
 
   # the DDOP bytes: the C writer against the Python's meter_pool(), versions 4 and 3
   add_test(NAME isobus_ddop COMMAND test_iso_ddop ${AGRIHIL_VECTORS_DIR}/isobus-ddop.txt)
+
+  # the operator interface on a VT (issue 39): the VT vectors the Python implement records
+  # (python tests/firmware/isobus_vt_vectors.py) and its pool's bytes
+  set(ISOBUS_VT_VECTORS)
+  foreach(v operator defect-ignores-master defect-no-alarm defect-bad-pool defect-no-reconnect
+          defect-meters-without-vt odd no-memory)
+    list(APPEND ISOBUS_VT_VECTORS ${ISOBUS_DIR}/data/vt-${v}.frames)
+  endforeach()
+  add_test(NAME isobus_vt_vectors COMMAND replay_isobus ${ISOBUS_VT_VECTORS})
+  add_test(NAME isobus_vt_pool COMMAND test_iso_pool ${ISOBUS_DIR}/data/vt-pool.txt)
+  add_test(NAME isobus_vt_cli_bad_vt COMMAND sh ${CLI} 2 "parameter 'vt' must be yes or no"
+           ${ISOFW} --bus socketcand:127.0.0.1:9 --param vt=maybe)
+  add_test(NAME isobus_vt_cli_bad_defect COMMAND sh ${CLI} 2 "parameter 'vt_defect' must be one of"
+           ${ISOFW} --bus socketcand:127.0.0.1:9 --param vt=yes --param vt_defect=lazy)
+  add_test(NAME isobus_vt_cli_defect_needs_vt
+           COMMAND sh ${CLI} 2 "vt_defect needs the operator interface (vt=yes)"
+           ${ISOFW} --bus socketcand:127.0.0.1:9 --param vt_defect=no-alarm)
+  add_test(NAME isobus_vt_cli_params_accepted
+           COMMAND sh ${CLI} 1 "127.0.0.1:9" ${ISOFW} --bus socketcand:127.0.0.1:9
+                   --param vt=yes --param vt_defect=bad-pool)
 endif()

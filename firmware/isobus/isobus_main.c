@@ -2,7 +2,7 @@
  * (iso_fert.h). The command line is agrihil-fertilizer-fw's (app.h: --bus, --sync,
  * --period-ms, --law, --param KEY=VALUE), with the ISOBUS mode's parameters as the Python
  * controller names them: address, identity_number, width_m (numbers), speed=ground|wheel,
- * ddop=valid|broken.
+ * ddop=valid|broken; vt=yes (the operator interface on a VT, isobus_vt.py) and vt_defect=NAME.
  *
  * The loop is its own, not app_run(): a CTS from the Task Controller is answered with up to
  * 255 TP data frames at once, more than app_run's APP_MAX_OUT (8). As there, the command frame
@@ -57,7 +57,12 @@ static int word_param(void *ctx, const char *key, const char *value)
         c->ddop_broken = strcmp(value, "broken") == 0;
         return 1;
     }
-    return 0;
+    const char *why = NULL;
+    int vt = iso_fert_vt_param(c, key, value, &why);
+    if (vt < 0) {
+        app_error(&INFO, "%s, got '%s'", why, value);
+    }
+    return vt;
 }
 
 static int send_all(hal_can_t *bus, const hal_can_frame_t *out, size_t n)
@@ -141,6 +146,12 @@ static int run(const app_options_t *opt)
                 INFO.name, (unsigned)controller.steps,
                 tcc_connected(&controller.tc) ? "connected" : "not connected",
                 controller.tc.connections);
+        if (cfg.vt) {
+            fprintf(stderr, "%s: VT client %s, %u connection(s), %u upload(s)%s\n", INFO.name,
+                    vtc_connected(&controller.vt) ? "connected" : "not connected",
+                    controller.vt.connections, controller.vt.uploads,
+                    controller.vt.refused ? ", pool refused" : "");
+        }
     }
     return status;
 }
