@@ -29,6 +29,7 @@ from pathlib import Path
 
 from hil.config import key_text, load_toml
 from hil.errors import ConfigError
+from hil.isobus.vt.steps import OperatorStep
 
 DUT_ACTIONS = ("restart",)
 #: the longest scenario accepted (a day of simulated time): beyond it is a typo, not a run
@@ -118,6 +119,12 @@ class TractorRun:
         Share of a section's ground that may be covered already before TC-SC switches it off.
     tc_memory_bytes : int, optional
         The largest pool the TC accepts; a smaller one makes it refuse the DUT's DDOP.
+    vt : bool, optional
+        The tractor has a Virtual Terminal (ISO 11783-6) beside its TC: the implement can
+        upload its pool and show its masks there, and the scenario's ``[[operator]]`` steps
+        are played on it (:mod:`hil.isobus.vt`).
+    operator : tuple of OperatorStep, optional
+        The scenario's ``[[operator]]`` list (filled from it at load; sorted by time).
     """
 
     field: str
@@ -126,6 +133,8 @@ class TractorRun:
     wheel_slip: float = 0.0
     overlap_tolerance_pct: float = 50.0
     tc_memory_bytes: int = 1 << 20
+    vt: bool = False
+    operator: tuple[OperatorStep, ...] = ()
 
     def __post_init__(self) -> None:
         if not self.field:
@@ -180,11 +189,21 @@ class Scenario:
         (:mod:`hil.rig.busload`); needs real time and a bus with a bit rate. 0: none.
     tractor : TractorRun, optional
         The rig plays an ISOBUS tractor driving a field (rigs that support it).
+    operator : tuple of OperatorStep, optional
+        The ``[[operator]]`` list: what the operator does on the tractor's Virtual Terminal,
+        at run times (press a soft key or button by id or label, enter a value, acknowledge
+        an alarm); needs ``[tractor] vt = true``. Whether the objects it names are in the
+        implement's pool is checked when the pool becomes active, before any step is played::
+
+            [[operator]]
+            at_s = 4.0
+            press = "Master"
 
     Raises
     ------
     ConfigError
-        A value out of range or not finite, or speed breakpoints out of order (naming the key).
+        A value out of range or not finite, speed breakpoints out of order, or operator steps
+        without the tractor's VT (naming the key).
     """
 
     name: str
@@ -198,6 +217,7 @@ class Scenario:
     tags: tuple[str, ...] = ()
     bus_load: float = 0.0
     tractor: TractorRun | None = None
+    operator: tuple[OperatorStep, ...] = ()
 
     def __post_init__(self) -> None:
         if not 0 < self.duration_s <= MAX_DURATION_S:
@@ -220,6 +240,24 @@ class Scenario:
         if times != sorted(times):
             raise ConfigError("speed_profile times must increase", key="speed_profile")
         object.__setattr__(self, "events", tuple(sorted(self.events, key=lambda e: e.at_s)))
+        self._operator_on_the_vt()
+
+    def _operator_on_the_vt(self) -> None:
+        """Give the sorted ``[[operator]]`` steps to the tractor's VT; refuse them without.
+
+        The field run plays them on the VT (``TractorRun.operator``).
+        """
+        steps = tuple(sorted(self.operator, key=lambda s: s.at_s))
+        object.__setattr__(self, "operator", steps)
+        if not steps:
+            return
+        if self.tractor is None or not self.tractor.vt:
+            raise ConfigError("operator steps act on the tractor's Virtual Terminal: the "
+                              "scenario needs a [tractor] table with vt = true", key="operator")
+        if self.tractor.operator not in ((), steps):
+            raise ConfigError("give the operator's steps once, as the scenario's [[operator]] "
+                              "list", key="tractor.operator")
+        object.__setattr__(self, "tractor", replace(self.tractor, operator=steps))
 
     def speed_at(self, time_s: float) -> float | None:
         """Ground speed from the profile (linear between breakpoints), or None without one."""
@@ -298,4 +336,9 @@ def load_scenario(path: str | Path) -> Scenario:
             raise ConfigError(f"event at {event.at_s:g} s is after the end of the run "
                               f"({scenario.duration_s:g} s): it would never happen",
                               path=str(path), key=f"events[{i}].at_s")
+    for i, step in enumerate(scenario.operator):
+        if step.at_s > scenario.duration_s:
+            raise ConfigError(f"operator step at {step.at_s:g} s is after the end of the run "
+                              f"({scenario.duration_s:g} s): it would never happen",
+                              path=str(path), key=f"operator[{i}].at_s")
     return scenario
