@@ -1,11 +1,14 @@
 """The "What the operator saw" section: the Virtual Terminal's screens on each run's time line.
 
 For every run whose directory holds the VT's record (``vt/vt.json``, written by
-:func:`hil.isobus.vt.screens.write_vt_record`): a table of the working sets that connected
+:func:`hil.isobus.vt.screens.write_vt_record`), or whose record carries it (a rig's field run
+with the tractor's VT: ``truth.field_run.vt``, the screens' PNGs in it,
+:class:`hil.isobus.vt.fieldvt.FieldVt`): a table of the working sets that connected
 (pool size, objects, version label, SHA-256, when the pool became active and whether it was
 loaded from the VT's storage), then the screens in run time order as thumbnails on a time
-line (each links to the full screen in the run's directory: click to enlarge). The thumbnails
-are embedded in the page as the report's other images are.
+line (each links to the full screen in the run's directory, or opens the full screen the
+record carries in place: click to enlarge). The thumbnails are embedded in the page as the
+report's other images are.
 """
 
 from __future__ import annotations
@@ -39,7 +42,10 @@ HEADERS = ("address", "NAME", "pool", "objects", "version label", "SHA-256", "ac
 def _vt_json(run: RunData) -> dict[str, Any] | None:
     path = run.path / "vt" / "vt.json"
     if not path.is_file():
-        return None
+        truth = run.record.get("truth")
+        field_run = truth.get("field_run") if isinstance(truth, dict) else None
+        carried = field_run.get("vt") if isinstance(field_run, dict) else None
+        return carried if isinstance(carried, dict) else None
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
@@ -48,9 +54,25 @@ def _vt_json(run: RunData) -> dict[str, Any] | None:
     return data if isinstance(data, dict) else None
 
 
-def _thumb(path: Path) -> str | None:
+def _image(data: dict[str, Any], folder: Path, name: str) -> bytes | None:
+    """A screen's PNG: carried in the record (base64), else the file in the run's folder."""
+    carried = (data.get("screen_images") or {}).get(name)
+    if isinstance(carried, str):
+        try:
+            return base64.b64decode(carried, validate=True)
+        except ValueError:
+            return None
     try:
-        with Image.open(path) as image:
+        return (folder / name).read_bytes()
+    except OSError:
+        return None
+
+
+def _thumb(png: bytes | None) -> str | None:
+    if png is None:
+        return None
+    try:
+        with Image.open(io.BytesIO(png)) as image:
             image.load()
             height = max(1, round(image.height * THUMB_WIDTH / image.width))
             small = image.convert("RGB").resize((THUMB_WIDTH, height),
@@ -97,23 +119,32 @@ def _timeline(run: RunData, data: dict[str, Any], qual_dir: Path) -> str:
     bar = (f'<div style="position:relative;height:10px;background:#eee;margin:4px 0 8px 0">'
            f"{ticks}</div>")
     cells = []
+    carried = bool(data.get("screen_images"))
     for s in screens[:MAX_THUMBS]:
         name = str(s.get("file", ""))
-        uri = _thumb(folder / name)
+        png = _image(data, folder, name)
+        uri = _thumb(png)
         caption = (f"{fmt_num(s.get('time_s'))} s · mask {s.get('mask')}"
                    f" · {s.get('reason', '')}")
-        if uri is None:
+        if uri is None or png is None:
             cells.append(f'<div class="small">{esc(caption)} (image missing)</div>')
             continue
         img = f'<img alt="{esc("VT screen at " + caption)}" src="{uri}" width="{THUMB_WIDTH}">'
-        href = relative_href(f"{rel}/{name}") if rel else None
-        if href:
-            img = f'<a href="{esc(href)}">{img}</a>'
+        if carried:         # no file to link to: the full screen opens in place
+            full = "data:image/png;base64," + base64.b64encode(png).decode("ascii")
+            img = (f'<details><summary style="list-style:none;cursor:zoom-in">{img}</summary>'
+                   f'<img alt="{esc("VT screen at " + caption + ", full size")}" '
+                   f'src="{full}"></details>')
+        else:
+            href = relative_href(f"{rel}/{name}") if rel else None
+            if href:
+                img = f'<a href="{esc(href)}">{img}</a>'
         cells.append(f'<figure style="margin:0 8px 8px 0;display:inline-block;'
                      f'vertical-align:top">{img}<figcaption class="small">{esc(caption)}'
                      f"</figcaption></figure>")
     more = len(screens) - MAX_THUMBS
-    tail = note(f"{more} later screens not shown here; all are in {rel or 'the run'}.") \
+    where = "the run's record" if carried else (rel or "the run")
+    tail = note(f"{more} later screens not shown here; all are in {where}.") \
         if more > 0 else ""
     dropped = data.get("screens_dropped") or 0
     if dropped:

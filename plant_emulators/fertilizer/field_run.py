@@ -17,8 +17,13 @@ needs around it:
 - **geometry**: the furrow openers of the rig's meter (``[boom]`` of its config: width, rows,
   fore-aft offset from the GNSS antenna), where the delivered fertilizer lands; the truth the
   ``isobus`` suite judges against the map;
-- **faults**: ``tc_down`` (the TC restarts and stays silent and deaf until cleared) and
-  ``tecu_silent`` (the TECU's speed messages stop).
+- **faults**: ``tc_down`` (the TC restarts and stays silent and deaf until cleared),
+  ``tecu_silent`` (the TECU's speed messages stop) and ``vt_down`` (the VT restarts and stays
+  silent until cleared);
+- **the Virtual Terminal** (``[tractor] vt = true``, issue 39): the VT beside the TC, the
+  scenario's ``[[operator]]`` steps played on it, the screens the operator saw
+  (:class:`hil.isobus.vt.fieldvt.FieldVt`); a step naming an object the implement's pool
+  does not have is raised as a setup error at the rig's next step once the pool is active.
 """
 
 from __future__ import annotations
@@ -27,8 +32,10 @@ import json
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from hil.errors import ConfigError
 from hil.isobus.field import Boom, Field, Pose, PrescriptionMap, load_field, load_prescription
 from hil.isobus.tractor import Tractor, TractorSetup, default_server_options
+from hil.isobus.vt.fieldvt import FieldVt
 from hil.rig.device import Device
 from hil.rig.scenario import TractorRun
 
@@ -39,6 +46,8 @@ FIELD_FAULTS = {
     "tc_down": "the Task Controller loses power: silent and deaf until cleared, then it claims "
                "its address again and restarts",
     "tecu_silent": "the tractor ECU's speed messages (PGN 65096/65097/61474) stop",
+    "vt_down": "the Virtual Terminal loses power ([tractor] vt = true): silent until cleared, "
+               "its working sets' pools lost, its stored versions kept",
 }
 
 
@@ -107,6 +116,9 @@ class FieldRun:
                                             drive_after_s=run.drive_after_s,
                                             wheel_slip=run.wheel_slip), options=options)
         self.device: Device = self.tractor.network
+        #: the VT beside the TC, with the scenario's operator (``[tractor] vt = true``)
+        self.vt: FieldVt | None = (FieldVt(self.tractor.network, run.operator)
+                                   if run.vt else None)
         self._openers = geometry.boom()
         #: row clutches (row 1 first), as the DUT last reported its sections
         self.clutches: tuple[bool, ...] = (True,) * geometry.rows
@@ -128,7 +140,15 @@ class FieldRun:
 
     # --- clutches -------------------------------------------------------------------------
     def update_clutches(self, time_s: float) -> tuple[bool, ...]:
-        """The clutches from the DUT's last reported section states (kept when none)."""
+        """The clutches from the DUT's last reported section states (kept when none).
+
+        Raises
+        ------
+        ConfigError
+            An operator step names an object the implement's pool (active now) lacks.
+        """
+        if self.vt is not None:
+            self.vt.raise_problem()
         address = self.tractor.implement_address()
         if address is None:
             return self.clutches
@@ -147,7 +167,14 @@ class FieldRun:
 
     # --- faults ---------------------------------------------------------------------------
     def set_fault(self, name: str, active: bool, time_s: float) -> None:
-        """Inject or clear a :data:`FIELD_FAULTS` fault (the tractor plays them)."""
+        """Inject or clear a :data:`FIELD_FAULTS` fault (the tractor plays them, the VT its
+        own)."""
+        if name == "vt_down":
+            if self.vt is None:
+                raise ConfigError("vt_down needs the tractor's VT: [tractor] vt = true",
+                                  key=name)
+            self.vt.set_down(active, time_s)
+            return
         self.tractor.set_fault(name, active, time_s)
 
     # --- record ---------------------------------------------------------------------------
@@ -161,4 +188,5 @@ class FieldRun:
             "drive_after_s": self.run.drive_after_s,
             "wheel_slip": self.run.wheel_slip,
             **self.tractor.run_record(),
+            **({"vt": self.vt.record()} if self.vt is not None else {}),
         }

@@ -60,14 +60,21 @@ class ScreenRecorder:
     max_screens : int
         Screens kept at most (a run that changes its screen for hours keeps its first ones and
         counts the rest in :attr:`dropped`).
+    keep_images : bool
+        Keep every screen's PNG in :attr:`images` (by file name), for a run that has no
+        directory to draw into (a rig's field run carries them in its record).
     """
 
     def __init__(self, vt: VirtualTerminalServer, directory: Path | None = None,
-                 min_interval_s: float = 0.5, max_screens: int = 1000) -> None:
+                 min_interval_s: float = 0.5, max_screens: int = 1000,
+                 keep_images: bool = False) -> None:
         self.vt = vt
         self.directory = directory
         self.min_interval_s = min_interval_s
         self.max_screens = max_screens
+        self.keep_images = keep_images
+        #: the screens' PNGs by file name (with ``keep_images``)
+        self.images: dict[str, bytes] = {}
         self.screens: list[Screen] = []
         self.dropped = 0
         #: the latest screen's PNG bytes per working set address
@@ -81,6 +88,10 @@ class ScreenRecorder:
         vt.on_change.append(self._on_change)
 
     def _on_change(self, ws: WorkingSet, time_s: float, reason: str) -> None:
+        if reason == "VT restarted":
+            # the restart drops the VT's timers, a deferred screen's with them
+            self._pending.discard(ws.address)
+            return
         if ws.pool is None or ws.locked_mask is not None:
             return
         last = self._last.get(ws.address)
@@ -125,6 +136,8 @@ class ScreenRecorder:
         if self.directory is not None:
             self.directory.mkdir(parents=True, exist_ok=True)
             (self.directory / name).write_bytes(png)
+        if self.keep_images:
+            self.images[name] = png
         screen = Screen(round(time_s, 6), ws.address, ws.active_mask, ws.soft_key_mask,
                         reason, name, hashlib.sha256(png).hexdigest())
         self.screens.append(screen)

@@ -9,7 +9,7 @@ from types import SimpleNamespace
 from typing import Any
 
 from hil.isobus.vt.bench import VtBench
-from hil.isobus.vt.screens import ScreenRecorder, write_vt_record
+from hil.isobus.vt.screens import ScreenRecorder, vt_record, write_vt_record
 from hil.report.record import RunRef
 from hil.report.rundata import RunData
 from hil.report.sections_vt import vt_section
@@ -72,3 +72,29 @@ def test_no_section_without_a_vt_and_a_broken_record_is_a_note(tmp_path: Path) -
     (plain / "vt" / "vt.json").write_text("{not json")
     assert vt_section(qual, [run]) == ""    # type: ignore[arg-type]
     assert "vt/vt.json cannot be read" in run.notes[0]
+
+
+def test_a_field_runs_screens_from_its_record(tmp_path: Path) -> None:
+    """A rig's field run carries the VT's record and the screens' PNGs in its record
+    (``truth.field_run.vt``, as :meth:`hil.isobus.vt.fieldvt.FieldVt.record` writes it): the
+    same section, each thumbnail opening its full screen in place (no file to link to)."""
+    bench = VtBench([implement_pool().to_bytes()], version_label=b"SPR1")
+    recorder = ScreenRecorder(bench.vt, None, keep_images=True)
+    bench.run_until(3.0)
+    record = {**vt_record(bench.vt, recorder),
+              "screen_images": {name: base64.b64encode(png).decode("ascii")
+                                for name, png in recorder.images.items()}}
+    assert record["screens"] and set(record["screen_images"]) == {
+        s["file"] for s in record["screens"]}
+    run_dir = tmp_path / "runs" / "field"
+    run_dir.mkdir(parents=True)
+    run = RunData(RunRef("runs/field", "isobus-vt-operator", "pass", 3.0, 1.0), run_dir,
+                  "fert", record={"truth": {"field_run": {"vt": record}}})
+    html = vt_section(SimpleNamespace(path=tmp_path / "record.json"), [run])  # type: ignore
+    tags = Tags()
+    tags.feed(html)
+    thumbs = [i for i in tags.images if i.get("width")]
+    full = [i for i in tags.images if not i.get("width")]
+    assert len(thumbs) == len(full) == len(record["screens"]) and not tags.hrefs
+    assert all(i["src"].startswith("data:image/png;base64,") for i in tags.images)
+    assert "<details>" in html and "SPR1" in html and "isobus-vt-operator" in html
