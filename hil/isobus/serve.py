@@ -18,8 +18,11 @@ live, flushed every :data:`SLICE_S`: ``tail -f`` them at the path printed when t
   and process data acknowledgement the TC received, in run time;
 
 and at the end ``as-applied.geojson`` (the as-applied map of the first implement that connected)
-and ``summary.json``. A disk that refuses a write ends the serve: what was recorded until then
-is moved into ``out`` all the same, and the error names the file.
+and ``summary.json``. With the Virtual Terminal (:class:`ServeVt`, ``--vt``), ``vt/``: the
+implement's screens as they are drawn (live in the staging directory like the logs) and, at
+the end, ``vt/vt.json`` (:func:`hil.isobus.vt.screens.vt_record`); they move into ``out`` with
+the rest, however the serve ends. A disk that refuses a write ends the serve: what was
+recorded until then is moved into ``out`` all the same, and the error names the file.
 
 ``summary.json`` is final however the serve ends: ``"status"`` is ``finished`` (the duration
 ran out), ``interrupted`` (Ctrl-C, SIGTERM or SIGHUP; ``"signal"`` names it) or ``error`` (a bus
@@ -44,6 +47,7 @@ from __future__ import annotations
 import contextlib
 import json
 import math
+import shutil
 import signal
 import threading
 import time
@@ -52,7 +56,7 @@ from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any, TextIO
+from typing import IO, TYPE_CHECKING, Any, TextIO
 
 import can
 
@@ -66,12 +70,17 @@ from hil.record.atomic import named_os_error, write_json_atomic
 from hil.record.staging import Staging, is_storage_error
 from hil.rig.device import Device
 
-__all__ = ["LoggedDevice", "ServeResult", "serve"]
+if TYPE_CHECKING:   # the VT (and its browser page's aiohttp) is imported by a serve with it
+    from hil.isobus.vt.attach import AttachedVt
+    from hil.isobus.vt.server import VtOptions
+
+__all__ = ["LoggedDevice", "ServeResult", "ServeVt", "serve"]
 
 #: how long each slice of the real-time loop runs before the logs are flushed
 SLICE_S = 0.2
-#: what a serve writes besides ``summary.json``, moved into ``out`` at its end
-OUTPUTS = ("bus.log", "tc.jsonl", "as-applied.geojson")
+#: what a serve writes besides ``summary.json``, moved into ``out`` at its end (``vt``: the
+#: VT's folder, with the VT only)
+OUTPUTS = ("bus.log", "tc.jsonl", "as-applied.geojson", "vt")
 #: the outputs written a line at a time, cut back to a whole line when the disk refuses one
 LINE_FILES = ("bus.log", "tc.jsonl")
 
@@ -117,6 +126,25 @@ class LoggedDevice(Device):
         for f in replies:
             self._log(f, time_s, rx=False)
         return replies
+
+
+@dataclass(frozen=True)
+class ServeVt:
+    """The Virtual Terminal of a serve (``hil isobus serve --vt``, ``--vt-browser PORT``).
+
+    Attributes
+    ----------
+    browser_port : int, optional
+        Serve the browser VT on this port of ``browser_host`` (0: a free one, printed).
+    browser_host : str
+        Where the browser VT listens.
+    options : VtOptions, optional
+        The VT (default: version 4, 480 px).
+    """
+
+    browser_port: int | None = None
+    browser_host: str = "127.0.0.1"
+    options: VtOptions | None = None
 
 
 @dataclass(frozen=True)
@@ -231,12 +259,16 @@ def _signal_name(exc: KeyboardInterrupt) -> str:
 
 def serve(tractor: Tractor, bus_spec: str, out: Path, *, duration_s: float = math.inf,
           console: Callable[[str], None] | None = print,
-          clock: Callable[[], float] = time.monotonic) -> ServeResult:
+          clock: Callable[[], float] = time.monotonic,
+          vt: ServeVt | None = None) -> ServeResult:
     """Run ``tractor`` on ``bus_spec`` in real time until ``duration_s`` or Ctrl-C.
 
     The TC's records go to ``tc.jsonl`` and are not kept in memory (the tractor's TC is set
     so); received pools are checked in a thread of their own, so the TECU's messages stay on
-    time meanwhile.
+    time meanwhile. With ``vt``, the Virtual Terminal joins the tractor's network beside the
+    TC, its screens and record written into ``vt/`` of the staging directory (see the module
+    docstring); its browser page, if asked for, is started before anything is written, so a
+    port that cannot be listened on leaves ``out`` as it was.
 
     Returns
     -------
@@ -250,13 +282,25 @@ def serve(tractor: Tractor, bus_spec: str, out: Path, *, duration_s: float = mat
         The bus cannot be opened or fails, or ``out`` cannot be written (what was recorded
         until then is on disk, and ``summary.json`` says why it ended).
     """
-    with _hangup_ends_the_serve():
-        return _serve(tractor, bus_spec, out, duration_s=duration_s, console=console,
-                      clock=clock)
+    attached = None
+    if vt is not None:
+        from hil.isobus.vt.attach import attach_vt
+
+        attached = attach_vt(tractor.network, options=vt.options, screens_dir=None,
+                             browser_port=vt.browser_port, browser_host=vt.browser_host,
+                             console=console if console is not None else print)
+    try:
+        with _hangup_ends_the_serve():
+            return _serve(tractor, bus_spec, out, duration_s=duration_s, console=console,
+                          clock=clock, attached=attached)
+    finally:
+        if attached is not None and attached.browser is not None:
+            attached.browser.stop()
 
 
 def _serve(tractor: Tractor, bus_spec: str, out: Path, *, duration_s: float,
-           console: Callable[[str], None] | None, clock: Callable[[], float]) -> ServeResult:
+           console: Callable[[str], None] | None, clock: Callable[[], float],
+           attached: AttachedVt | None = None) -> ServeResult:
     tc = tractor.tc
     tc.keep_records = False
     checker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="tc-ddop-check")
@@ -280,6 +324,8 @@ def _serve(tractor: Tractor, bus_spec: str, out: Path, *, duration_s: float,
         bus.shutdown()
         raise
     refused = _Refused(staging.path)
+    if attached is not None:        # the screens drawn live into the staging directory
+        attached.screens_dir = attached.recorder.directory = staging.path / "vt"
     try:
         # from here on, whatever ends the serve (a signal as soon as the line is out) writes
         # its summary
@@ -326,6 +372,8 @@ def _serve(tractor: Tractor, bus_spec: str, out: Path, *, duration_s: float,
                       if not isinstance(exc, BusError | OSError) else str(exc)}
         with contextlib.suppress(Exception):
             _write_summary(staging, tractor, logged, now, interrupted, ending, tc_log)
+        with contextlib.suppress(Exception):
+            _close_vt(attached)
         _promote(staging)
         raise
     bus.shutdown()
@@ -339,6 +387,9 @@ def _serve(tractor: Tractor, bus_spec: str, out: Path, *, duration_s: float,
             record = tractor.as_applied()
             if record is not None and len(record):
                 record.save_geojson(staging.path / "as-applied.geojson")
+    if refused.error is None and attached is not None:
+        with refused.noting("vt/vt.json"):
+            _close_vt(attached)
     if refused.error is not None:
         ending = {"status": "error", "error": str(refused.in_out(out))}
     # a small file: it may still fit where the log did not; if not, out's placeholder stays
@@ -383,13 +434,23 @@ def _trim_to_last_line(path: Path) -> None:
         handle.truncate(data.rfind(b"\n") + 1)
 
 
+def _close_vt(attached: AttachedVt | None) -> None:
+    """The VT's record, ``vt/vt.json``, beside its screens (when the VT took its address)."""
+    if attached is not None:
+        attached.close()
+
+
 def _promote(staging: Staging) -> None:
     """Move a serve's files into ``out``: they replace the previous serve's as a set (an
-    as-applied map of an earlier run must not sit beside this run's log)."""
+    as-applied map or VT folder of an earlier run must not sit beside this run's log)."""
     for name in OUTPUTS:
         if not (staging.path / name).exists():
-            with contextlib.suppress(FileNotFoundError):
-                (staging.out / name).unlink()
+            old = staging.out / name
+            if old.is_dir() and not old.is_symlink():
+                shutil.rmtree(old, ignore_errors=True)
+            else:
+                with contextlib.suppress(FileNotFoundError):
+                    old.unlink()
     staging.promote()
 
 
