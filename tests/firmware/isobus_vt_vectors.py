@@ -25,6 +25,8 @@ Scenarios:
   function: the Python client raises IndexError on one, the C client ignores it), then a VT
   restart whose first get memory answer is lost (the client's 3 s timeout) and whose first
   load version answer is an error (the pool uploaded after all);
+* ``vt-concurrent``: the rig's VT and a scripted TC letting the DDOP go while the VT pool is
+  uploaded: two TP transfers at once, one to each peer;
 * ``vt-no-memory``: a VT with 500 bytes of pool memory: get memory refused, quiet for good
   (end of object pool refused: ``vt-defect-bad-pool``).
 """
@@ -41,10 +43,11 @@ import can
 
 from hil.isobus.can_id import encode_id
 from hil.isobus.field import load_field, load_prescription
+from hil.isobus.network import IsobusNetwork
 from hil.isobus.tractor import Tractor, TractorSetup
 from hil.isobus.vt.operator import Operator
 from hil.isobus.vt.server import VirtualTerminalServer, VtOptions, add_vt
-from hil.isobus.wire import VirtualWire
+from hil.isobus.wire import ScriptedNode, VirtualWire
 from hil.rig.device import Device
 from plant_emulators.fertilizer.frames import FertilizerDatabase
 from reference_controllers.fertilizer.isobus_vt import IsobusVtFlowController
@@ -112,7 +115,7 @@ class Scenario:
     description: str
     params: dict[str, str | float]
     end_s: float
-    #: "operator" (operator_scenario), "odd" (odd_scenario), "no-memory"
+    #: "operator", "odd", "concurrent", "no-memory" (the *_scenario functions)
     kind: str = "operator"
 
 
@@ -256,6 +259,50 @@ def odd_scenario(node: Device, end_s: float) -> VirtualTerminalServer:
     return vt
 
 
+TC = 0xF7
+
+
+def _pd(hex_data: str) -> can.Message:
+    """Process data from the scripted TC to the implement."""
+    return can.Message(arbitration_id=encode_id(5, 0xCB00, TC, ME),
+                       data=bytes.fromhex(hex_data.replace(" ", "")), is_extended_id=True)
+
+
+def _tc_status() -> can.Message:
+    return can.Message(arbitration_id=encode_id(3, 0xCB00, TC, 0xFF),
+                       data=bytes.fromhex("FEFFFFFF000000FF"), is_extended_id=True)
+
+
+def _tc_cm(hex_data: str) -> can.Message:
+    return can.Message(arbitration_id=encode_id(7, 0xEC00, TC, ME),
+                       data=bytes.fromhex(hex_data.replace(" ", "")), is_extended_id=True)
+
+
+def _scripted_tc() -> list[tuple[float, can.Message]]:
+    """A TC that lets the DDOP (864 bytes, 124 packets) go while the VT pool's upload runs
+    (0.8-1.8 s): status, version, language, an unknown structure label, transfer permission at
+    0.85 s, CTS windows of 16 packets, end of message, transfer response, activated."""
+    windows = [(0.95 + 0.1 * k, _tc_cm(f"11 {16 if k < 7 else 12:02X} {1 + 16 * k:02X} FF FF "
+                                       "00 CB 00")) for k in range(8)]
+    return [(0.45, _tc_status()), (0.55, _pd("10 04 FF 15 00 01 10 00")),
+            (0.55, _pd("00 FF FF FF FF FF FF FF")),
+            (0.65, can.Message(arbitration_id=encode_id(6, 0xFE0F, TC, 0xFF),
+                               data=bytes.fromhex("656E000000000000"), is_extended_id=True)),
+            (0.75, _pd("11 FF FF FF FF FF FF FF")), (0.85, _pd("51 00 FF FF FF FF FF FF")),
+            *windows, (1.75, _tc_cm("13 60 03 7C FF 00 CB 00")),
+            (1.85, _pd("71 00 5F 03 00 00 FF FF")), (1.95, _pd("91 00 FF FF FF FF 00 FF")),
+            (2.45, _tc_status()), (4.45, _tc_status())]
+
+
+def concurrent_scenario(node: Device, end_s: float) -> VirtualTerminalServer:
+    """The rig's VT alone on its network and a scripted TC (:func:`_scripted_tc`): the
+    implement's two TP transfers (the VT pool, the DDOP) at the same time."""
+    network = IsobusNetwork()
+    vt = add_vt(network)
+    VirtualWire([network, ScriptedNode(_scripted_tc(), "scripted TC"), node]).run_until(end_s)
+    return vt
+
+
 def no_memory_scenario(node: Device, end_s: float) -> VirtualTerminalServer:
     """The tractor with a VT of 500 bytes of pool memory."""
     fld = load_field(FIELDS / "field-rect.geojson")
@@ -287,6 +334,10 @@ def scenarios() -> list[Scenario]:
                      "turn; the VT restarted at 10 s for 5 s: its first get memory answer lost\n"
                      "(3 s, start over), its first load version answer an error (upload).",
                      {"law": "physical", "vt": "yes"}, 32.0, kind="odd"),
+            Scenario("vt-concurrent",
+                     "The rig's VT and a scripted TC: the VT pool (1,048 bytes) and the DDOP (864\n"
+                     "bytes) go by TP at the same time, each to its peer.",
+                     {"law": "physical", "vt": "yes"}, 5.0, kind="concurrent"),
             Scenario("vt-no-memory", "A VT of 500 bytes: get memory refused, quiet for good.",
                      {"law": "physical", "vt": "yes"}, 8.0, kind="no-memory")]
     return out
@@ -298,6 +349,8 @@ def record(s: Scenario) -> list[str]:
     node = RecordingNode(ctl)
     if s.kind == "odd":
         odd_scenario(node, s.end_s)
+    elif s.kind == "concurrent":
+        concurrent_scenario(node, s.end_s)
     elif s.kind == "no-memory":
         no_memory_scenario(node, s.end_s)
     else:

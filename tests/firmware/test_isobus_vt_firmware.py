@@ -71,8 +71,8 @@ def isobus_bin(firmware_bin: Path) -> Path:
 
 
 # ------------------------------------------------------------------ the vectors
-#: the tractor's TC covers the field at every 10 ms tick: the operator runs take a few s each
-FAST = {"vt-no-memory"}
+#: the tractor's TC covers the field at every 10 ms tick: its runs take a few s each
+FAST = {"vt-no-memory", "vt-concurrent"}
 
 
 @pytest.mark.parametrize("scenario", [
