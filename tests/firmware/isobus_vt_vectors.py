@@ -19,6 +19,8 @@ Scenarios:
   6-7.5 s, Master on at 8 s, row 3's flow lost from 14 s (its alarm), Ack at 19 s, Master off
   at 20 s, the VT restarted at 22 s (down 5 s: the pool loaded from the VT's storage);
 * ``vt-defect-*``: the same scenario with each must-fail implement (``vt_defect``);
+* ``vt-cross-row``: the same scenario to 21 s with row 2's module reading 60 % of the flow
+  (good flags) from 10 s to 16 s: left out by the cross-row check, its alarm;
 * ``vt-odd``: the rig's VT, and frames from its address it would not send (keys pressed, held,
   aborted, keys and buttons the pool lacks, numbers for other objects, a string, an empty
   message, another VT's status, answers out of turn; not a message too short for its
@@ -74,8 +76,11 @@ class RecordingNode(Device):
     """The implement on the wire (SYNC every period, an ideal meter's flow frames before it;
     the rows in ``silent`` report nothing), recording every frame in and out."""
 
-    def __init__(self, controller: IsobusVtFlowController) -> None:
+    def __init__(self, controller: IsobusVtFlowController,
+                 wrong_row: tuple[int, float, float, float] | None = None) -> None:
         self.ctl = controller
+        #: (row, gain, from s, to s): that row's module reads gain x the flow meanwhile
+        self.wrong_row = wrong_row
         self.period_s = controller.adapter_params.period_s
         self.silent: set[int] = set()
         self.lines: list[str] = [f"> {frame_text(f)}" for f in controller.on_start()]
@@ -92,8 +97,13 @@ class RecordingNode(Device):
 
     def emit(self, time_s: float) -> list[can.Message]:
         for row in sorted(self.ctl.rows.active - self.silent):
+            flow = self._target
+            if self.wrong_row is not None:
+                wrong, gain, start_s, end_s = self.wrong_row
+                if row == wrong and start_s <= time_s < end_s:
+                    flow = round(flow * gain, 2)
             self._feed(DB.encode(f"FlowModule{row}", {
-                "Flow": self._target, "WindowMass": self._target, "Counter": 1,
+                "Flow": flow, "WindowMass": flow, "Counter": 1,
                 "BaselineReady": 1, "SlidingWindow": 1, "AdcOverrange": 0,
                 "InterceptApplied": 0, "WindowLength": 1000}))
         out = self._feed(SYNC)
@@ -117,6 +127,8 @@ class Scenario:
     end_s: float
     #: "operator", "odd", "concurrent", "no-memory" (the *_scenario functions)
     kind: str = "operator"
+    #: (row, gain, from s, to s): that row's module reads gain x the flow, good flags
+    wrong_row: tuple[int, float, float, float] | None = None
 
 
 def controller(params: dict[str, str | float]) -> IsobusVtFlowController:
@@ -326,6 +338,11 @@ def scenarios() -> list[Scenario]:
                             f"The operator's scenario with the must-fail implement "
                             f"vt_defect={defect}.",
                             {"law": "physical", "vt": "yes", "vt_defect": defect}, 34.0))
+    out.append(Scenario("vt-cross-row",
+                        "The operator's scenario with row 2's module reading 60 % of the flow\n"
+                        "with good flags from 10 s to 16 s: the cross-row check leaves it out,\n"
+                        "its alarm.",
+                        {"law": "physical", "vt": "yes"}, 21.0, wrong_row=(2, 0.6, 10.0, 16.0)))
     out += [Scenario("vt-odd",
                      "The rig's VT, and frames from its address it would not send: keys pressed,\n"
                      "held, aborted, a button and a key the pool lacks, the calibration's numbers\n"
@@ -346,7 +363,7 @@ def scenarios() -> list[Scenario]:
 def record(s: Scenario) -> list[str]:
     """Run ``s`` and return the vector file's lines."""
     ctl = controller(s.params)
-    node = RecordingNode(ctl)
+    node = RecordingNode(ctl, s.wrong_row)
     if s.kind == "odd":
         odd_scenario(node, s.end_s)
     elif s.kind == "concurrent":
