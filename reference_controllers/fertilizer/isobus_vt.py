@@ -21,16 +21,22 @@ The pool is stored on the VT under :data:`~reference_controllers.fertilizer.oper
 VERSION_LABEL`, so after a VT restart the controller loads it instead of uploading it.
 
 This is the Python build only; the C ISOBUS build has no VT client yet.
+
+:func:`fertilizer_piecewise_pid_isobus_vt` makes it for a DUT profile's ``launch.inprocess``
+(``dut_profiles/fertilizer-piecewise-pid-isobus-vt-daemon.toml``; the must-fail implements are
+the same with ``vt_defect``).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
 import can
 
-from hil.isobus.vt.client import KeyEvent, VtClient
+from hil.dut import Controller
+from hil.isobus.vt.client import MAINTENANCE_PERIOD_S, KeyEvent, VtClient
 from hil.isobus.vt.messages import KeyActivation
 from reference_controllers.fertilizer.isobus_mode import IsobusFlowController
 from reference_controllers.fertilizer.operator_pool import (
@@ -45,9 +51,13 @@ ALARM_AFTER_S = 1.0
 """A row's flow lost this long while metering raises the alarm."""
 DISPLAY_PERIOD_S = 1.0
 """How often the Run mask's values are refreshed (changed ones only)."""
-DEFECTS = ("", "ignores-master", "no-alarm", "bad-pool", "no-reconnect", "meters-without-vt")
+DEFECTS = ("", "ignores-master", "no-alarm", "bad-pool", "no-reconnect", "meters-without-vt",
+           "no-store", "slow-maintenance", "ignores-calibration")
 """Parameter ``vt_defect``: the must-fail implements made of the reference, each a defect a
-real implement could have (empty: the reference)."""
+real implement could have (empty: the reference): ``no-store`` never stores its pool on the
+VT (so it uploads it again after a VT restart); ``slow-maintenance`` sends its working set
+maintenance every 2 s instead of every second; ``ignores-calibration`` shows the calibration
+entered on the VT but meters on its own map."""
 
 
 class IsobusVtFlowController(IsobusFlowController):
@@ -72,7 +82,8 @@ class IsobusVtFlowController(IsobusFlowController):
             raw = bytearray(pool_bytes)
             raw[obj.offset + 8:obj.offset + 10] = (0x7777).to_bytes(2, "little")
             pool_bytes = bytes(raw)
-        self.vt = VtClient(self.port, [pool_bytes], VERSION_LABEL)
+        self.vt = VtClient(self.port, [pool_bytes],
+                           None if defect == "no-store" else VERSION_LABEL)
         self.vt.on_key = self._on_key
         self.vt.on_number = self._on_number
         self.port.run(self.vt)
@@ -85,6 +96,7 @@ class IsobusVtFlowController(IsobusFlowController):
         self._next_display_s = 0.0
         self._lost_since: dict[int, float] = {}
         self._alarmed: set[int] = set()
+        self._maintenance_due = math.inf
 
     # -- the operator --------------------------------------------------------------------------
 
@@ -109,7 +121,8 @@ class IsobusVtFlowController(IsobusFlowController):
         else:
             return
         self.calibration = (grams, rpm)
-        self.calibrate(grams, rpm)
+        if self.defect != "ignores-calibration":
+            self.calibrate(grams, rpm)
 
     # -- the policy ----------------------------------------------------------------------------
 
@@ -126,12 +139,22 @@ class IsobusVtFlowController(IsobusFlowController):
         if self.defect == "no-reconnect" and self.vt.connected_s is not None:
             self.vt.vt_status_s = None        # never notices the VT is gone
         out = super().step()
+        if self.defect == "slow-maintenance":
+            self._slow_maintenance()
         if self.vt.state == "connected":
             self._watch_rows()
             if self.clock_s >= self._next_display_s - 1e-9:
                 self._next_display_s = self.clock_s + DISPLAY_PERIOD_S
                 self._refresh()
         return out
+
+    def _slow_maintenance(self) -> None:
+        """The ``slow-maintenance`` defect: each maintenance message's next one a second
+        later than due (every 2 s)."""
+        due = self.vt._next_maintenance_s
+        if math.isfinite(due) and due != self._maintenance_due:
+            self.vt._next_maintenance_s = due + MAINTENANCE_PERIOD_S
+            self._maintenance_due = self.vt._next_maintenance_s
 
     def _row_rate_kg_ha(self, row: int) -> float:
         speed = self.ground_speed()
@@ -170,3 +193,24 @@ class IsobusVtFlowController(IsobusFlowController):
                 text = f"Row {row}: flow lost".ljust(ALARM_TEXT_LENGTH).encode("latin-1")
                 self.vt.change_string_value(IDS.alarm_var, text)
                 self.vt.change_active_mask(IDS.working_set, IDS.alarm)
+
+
+def fertilizer_piecewise_pid_isobus_vt(**params: ParamValue) -> Controller:
+    """The ISOBUS reference with its VT operator interface, stepping on SYNC, for a DUT
+    profile's ``launch.inprocess`` (its ``[parameters]`` as keywords; ``mode`` physical or
+    paper-literal, ``vt_defect`` for the must-fail implements).
+
+    Raises
+    ------
+    ValueError
+        An unknown parameter or a bad value (named).
+    """
+    merged = dict(params)
+    mode = str(merged.pop("mode", "physical"))
+    try:
+        if mode not in ("physical", "paper-literal"):
+            raise ParamError(f"parameter 'mode' must be physical or paper-literal, got "
+                             f"{mode!r}")
+        return IsobusVtFlowController(mode, merged, step_on_sync=True)
+    except ParamError as exc:
+        raise ValueError(str(exc)) from exc
