@@ -57,10 +57,11 @@ import numpy as np
 from hil.conformance import checks
 from hil.conformance.declared import BusContract, DeclaredFrame, build_contract
 from hil.conformance.framelog import FrameLog, read_bus_log
-from hil.conformance.isobus import isobus_conformance
+from hil.conformance.isobus import isobus_conformance, isobus_frames
 from hil.conformance.rigs import rig_bus
 from hil.dut.profile import DutProfile, database_path
 from hil.errors import ConfigError
+from hil.isobus.vt.conformance import vt_client_conformance
 from hil.limits import MEASUREMENTS
 from hil.measurements import Measurement
 from hil.record.buslog import UNHEARD_NAME
@@ -197,8 +198,12 @@ def run_conformance(record: Mapping[str, Any], out_dir: Path, profile: DutProfil
         resolution_s = (physics_period_s if clock == "realtime"
                         else profile.timing.control_period_ms / 1000.0)
         node = {"node": contract.node_name, **(conditions or {})}
+        rows = isobus_frames(isobus_log)        # decoded once for both
         found = [_with_profile_limits(profile, m) for m in
-                 isobus_conformance(isobus_log, resolution_s=resolution_s, conditions=node)]
+                 isobus_conformance(rows, resolution_s=resolution_s, conditions=node)]
+        # a run with the tractor's VT on the bus: the DUT's behaviour as a VT client too
+        found += [_with_profile_limits(profile, m) for m in vt_client_conformance(
+            rows, end_s=float(record.get("sim_s") or 0.0) or None, conditions=node)]
         out.measurements.extend(found)
         out.detail["isobus"] = [{"name": m.name, "value": m.value, "unit": m.unit,
                                  "outcome": m.outcome.value, "note": m.note,

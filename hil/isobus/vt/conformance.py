@@ -14,18 +14,27 @@ for every working set that talks to the VT at ``vt_address``:
 Only what the frames show is judged: a transfer's first byte (its function) is read from its
 first data packet; a transfer whose packets were not seen is taken as a pool transfer when it
 is an ETP one.
+
+:func:`vt_client_conformance` makes them the measurements of a qualification's bus conformance
+(``isobus.vt_client.violations``, one per kind, limit 0), for a run that had a VT on the bus
+(its status heard). A maintenance gap while the VT itself was silent (its status more than
+1.5 s apart: a VT restart) is the VT's, not the client's: a client stops its maintenance when
+it has lost the VT (3 s without status) and starts over when it is back.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+import itertools
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any, Protocol
 
 import can
 
-from hil.isobus.can_id import decode_id
+from hil.isobus.can_id import decode_id, encode_id
 from hil.isobus.tp_messages import PGN_ETP_CM, PGN_ETP_DT, PGN_TP_CM, PGN_TP_DT, Control
-from hil.isobus.vt.messages import ECU_TO_VT_PGN, Function
+from hil.isobus.vt.messages import ECU_TO_VT_PGN, VT_TO_ECU_PGN, Function
+from hil.measurements import Measurement
 
 MAINTENANCE_PERIOD_S = 1.0
 MAINTENANCE_LATE_S = 1.5
@@ -40,6 +49,8 @@ class Finding:
     address: int
     kind: str
     detail: str
+    #: a maintenance gap's start (its end is ``time_s``)
+    since_s: float | None = None
 
 
 @dataclass
@@ -87,7 +98,7 @@ def vt_client_findings(frames: Iterable[tuple[float, can.Message]],
             if last is not None and end_s - last > MAINTENANCE_LATE_S:
                 findings.append(Finding(end_s, address, "maintenance",
                                         f"no working set maintenance for the last "
-                                        f"{end_s - last:.1f} s of the run"))
+                                        f"{end_s - last:.1f} s of the run", since_s=last))
     return sorted(findings, key=lambda f: f.time_s)
 
 
@@ -98,7 +109,8 @@ def _single(client: _Client, address: int, function: int, t: float,
         if last is not None and t - last > MAINTENANCE_LATE_S:
             findings.append(Finding(t, address, "maintenance",
                                     f"{t - last:.2f} s between two working set maintenance "
-                                    f"messages (due every {MAINTENANCE_PERIOD_S:g} s)"))
+                                    f"messages (due every {MAINTENANCE_PERIOD_S:g} s)",
+                                    since_s=last))
         client.last_maintenance_s = t
     _function(client, address, function, t, findings)
 
@@ -135,3 +147,67 @@ def _connection(client: _Client, address: int, pgn: int, data: bytes, t: float,
     elif control == Control.ABORT:
         client.open_since_s = None
         client.pending_function = None
+
+
+# -- in a qualification's bus conformance -----------------------------------------------------
+
+KINDS = ("maintenance", "pool-before-memory", "two-transfers")
+"""What :func:`vt_client_findings` finds, each a measurement of its own."""
+VT_STATUS = 0xFE
+"""The VT status message's function byte."""
+VT_SILENT_S = 1.5
+"""VT status messages (every 1 s) further apart than this: the VT was silent (restarting)."""
+MEASUREMENT = "isobus.vt_client.violations"
+
+
+class FrameRow(Protocol):
+    """A decoded 29-bit frame (:class:`hil.conformance.isobus.IsobusFrame`)."""
+
+    time_s: float
+    pgn: int
+    source: int
+    destination: int
+    data: bytes
+
+
+def vt_silences(rows: Sequence[FrameRow], vt_address: int,
+                end_s: float | None = None) -> list[tuple[float, float]]:
+    """(from, to) where the VT's status messages were more than :data:`VT_SILENT_S` apart
+    (to the end of the run when it ended silent)."""
+    status = [r.time_s for r in rows if r.source == vt_address and r.pgn == VT_TO_ECU_PGN
+              and r.data[:1] == bytes([VT_STATUS])]
+    out = [(a, b) for a, b in itertools.pairwise(status) if b - a > VT_SILENT_S]
+    if status and end_s is not None and end_s - status[-1] > VT_SILENT_S:
+        out.append((status[-1], end_s))
+    return out
+
+
+def vt_client_conformance(rows: Sequence[FrameRow], *, vt_address: int = 0x26,
+                          end_s: float | None = None,
+                          conditions: dict[str, Any] | None = None) -> list[Measurement]:
+    """``isobus.vt_client.violations`` per kind, limit 0, for a run whose frames show the VT's
+    status (none otherwise: no VT, nothing to judge); maintenance gaps across the VT's own
+    silence are left out (see the module docstring)."""
+    silences = vt_silences(rows, vt_address, end_s)
+    if not any(r.source == vt_address and r.pgn == VT_TO_ECU_PGN for r in rows):
+        return []
+    frames = [(r.time_s, can.Message(arbitration_id=encode_id(6, r.pgn, r.source,
+                                                               r.destination),
+                                     is_extended_id=True, data=r.data)) for r in rows]
+    found = [f for f in vt_client_findings(frames, vt_address, end_s)
+             if not (f.kind == "maintenance" and f.since_s is not None
+                     and any(a < f.time_s and f.since_s < b for a, b in silences))]
+    excused = len(silences)
+    out = []
+    for kind in KINDS:
+        mine = [f for f in found if f.kind == kind]
+        shown = "; ".join(f"{f.time_s:.2f} s from 0x{f.address:02X}: {f.detail}"
+                          for f in mine[:5])
+        note = shown + (f" (and {len(mine) - 5} more)" if len(mine) > 5 else "")
+        if kind == "maintenance" and excused:
+            note = (note + "; " if note else "") + (f"gaps across the VT's {excused} "
+                                                    f"silence(s) left out")
+        out.append(Measurement(MEASUREMENT, float(len(mine)), "findings",
+                               conditions={**(conditions or {}), "kind": kind}, note=note,
+                               high=0.0))
+    return out
