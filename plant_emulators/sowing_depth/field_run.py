@@ -15,7 +15,10 @@ set-point latency its DDOP declares. What the rig adds around the tractor:
   ``tractor_rear_axle_ahead_of_seed_m`` behind the GNSS antenna (the tractor's reference point,
   over its rear axle); the truth cells of the run are placed there, which the suite judges
   against the map;
-- **faults**: ``tc_down`` and ``tecu_silent``, as on the fertilizer rig.
+- **faults**: ``tc_down`` and ``tecu_silent``, as on the fertilizer rig;
+- **what the implement said**: every actual seeding depth (DDI 57) it sent the TC, and the
+  default, minimum and maximum seeding depth its DDOP declares (DDI 58-60), for the suite to
+  judge against the truth (what it reports; what it does without a TC).
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from hil.errors import ConfigError
+from hil.isobus import ddi as dd
 from hil.isobus.field import Boom, Field, Pose, PrescriptionMap, load_field, load_prescription
 from hil.isobus.tractor import Tractor, TractorSetup, default_server_options
 from hil.rig.device import Device
@@ -41,6 +45,10 @@ DEPTH_FIELD_FAULTS = {
                "its address again and restarts",
     "tecu_silent": "the tractor ECU's speed messages (PGN 65096/65097/61474) stop",
 }
+
+#: the DDOP's declared depths the run keeps: key -> DDI
+_DECLARED = {"default": dd.DEFAULT_SEEDING_DEPTH, "minimum": dd.MINIMUM_SEEDING_DEPTH,
+             "maximum": dd.MAXIMUM_SEEDING_DEPTH}
 
 
 @dataclass(frozen=True)
@@ -95,6 +103,9 @@ class DepthFieldRun:
                                             wheel_slip=run.wheel_slip), options=options)
         self.device: Device = self.tractor.network
         self._line = seed_line.boom()
+        #: the depths the implement's DDOP declares (DDI 58-60, mm), kept from the last pool
+        #: the TC had active (a TC that goes down forgets its sessions)
+        self._declared: dict[str, float] = {}
 
     def pose(self, time_s: float) -> Pose:
         """The antenna at run time ``time_s``."""
@@ -121,10 +132,35 @@ class DepthFieldRun:
 
     def set_fault(self, name: str, active: bool, time_s: float) -> None:
         """Inject or clear a :data:`DEPTH_FIELD_FAULTS` fault (the tractor plays them)."""
+        self._keep_declared()
         self.tractor.set_fault(name, active, time_s)
 
+    def _keep_declared(self) -> None:
+        """Keep the depths the active pool declares (DDI 58-60 of its first element that has
+        any), before a fault may end its session."""
+        for session in self.tractor.tc.sessions.values():
+            pool = session.pool
+            if pool is None:
+                continue
+            for element in pool.elements:
+                found = {key: pool.property_value(element.element_number, ddi)
+                         for key, ddi in _DECLARED.items()}
+                if any(v is not None for v in found.values()):
+                    self._declared = {k: float(v) for k, v in found.items() if v is not None}
+                    return
+
+    def reported_depths(self) -> dict[str, list[float]]:
+        """Every actual seeding depth (DDI 57, mm) an implement sent the TC: ``t_s`` (run
+        time it arrived), ``depth_mm``."""
+        scale = self.prescription.unit.ddi_per_unit if self.prescription is not None else 1.0
+        values = [v for v in self.tractor.tc.values if v.ddi == dd.ACTUAL_SEEDING_DEPTH]
+        return {"t_s": [round(v.time_s, 6) for v in values],
+                "depth_mm": [v.value / scale for v in values]}
+
     def truth(self) -> dict[str, object]:
-        """What the suite needs besides the traces: geometry, files, the TC's events."""
+        """What the suite needs besides the traces: geometry, files, the TC's events, what
+        the implement reported and declared."""
+        self._keep_declared()
         return {
             "seed_line": self.seed_line.as_dict(),
             "field": self.run.field,
@@ -133,4 +169,6 @@ class DepthFieldRun:
             "drive_after_s": self.run.drive_after_s,
             "wheel_slip": self.run.wheel_slip,
             **self.tractor.run_record(),
+            "reported_depth": self.reported_depths(),
+            "declared_depth_mm": dict(self._declared),
         }
