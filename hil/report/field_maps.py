@@ -1,10 +1,16 @@
-"""What a field run under the Task Controller laid where, for the report: the maps and the
-as-applied GeoJSON drawn from :func:`hil.isobus.field.laid.laid_from_run` (the same reading of
-the run's traces and truth as the ``isobus`` suite judges). The as-applied map is
-:class:`~hil.isobus.field.AsAppliedRecord`'s: one polygon per row per :data:`CELL_LENGTH_M` of
-travel, with the mass laid over its area as its rate, in WGS84 (RFC 7946).
+"""What a field run under the Task Controller laid or sowed where, for the report: the maps and
+the as-applied GeoJSON.
 
-Nothing here reads what the DUT or the TC said: only the mass that landed and where.
+- the fertilizer rig (``truth.field_run.boom``): drawn from
+  :func:`hil.isobus.field.laid.laid_from_run` (the same reading of the run's traces and truth as
+  the ``isobus`` suite judges), each row's mass laid over its area as its rate (kg/ha);
+- the depth rig (``truth.field_run.seed_line``): drawn from the run's truth cells
+  (:mod:`hil.report.field_depth`), each row's true seeding depth (mm).
+
+The as-applied map is :class:`~hil.isobus.field.AsAppliedRecord`'s: one polygon per row per
+:data:`CELL_LENGTH_M` of travel, with its value as its ``rate``, in WGS84 (RFC 7946).
+
+Nothing here reads what the DUT or the TC said: only what landed and where.
 """
 
 from __future__ import annotations
@@ -32,8 +38,10 @@ from hil.isobus.field.laid import LaidError, laid_from_run
 
 #: each row strip of the as-applied map is cut every this much travel (m)
 CELL_LENGTH_M = 1.0
-#: the unit of what the rig lays (mass per area)
+#: the unit of what the fertilizer rig lays (mass per area)
 UNIT = "kg/ha"
+#: the unit of the depth rig's seeding depth
+DEPTH_UNIT = "mm"
 
 
 class FieldMapError(ValueError):
@@ -48,14 +56,15 @@ def is_field_run(record: Mapping[str, Any]) -> bool:
 
 @dataclass(frozen=True)
 class ZoneRate:
-    """What the map prescribes in one zone and what the rows laid there."""
+    """What the map prescribes in one zone and what the rows laid (or sowed) there."""
 
     index: int
     """The zone's position in the map (-1: the ground outside every zone)."""
     name: str
     prescribed: float
     laid: float | None
-    """Mass laid over the ground the rows applied on in the zone (kg/ha); None: none."""
+    """Mass laid over the ground the rows applied on in the zone (kg/ha), or the mean depth
+    sown there (mm); None: none."""
     area_m2: float
     """The ground the rows applied on in the zone."""
 
@@ -63,7 +72,8 @@ class ZoneRate:
 @dataclass(frozen=True)
 class FieldRunMap:
     """One field run, sampled at :data:`hil.isobus.field.laid.SAMPLE_S`: ``k`` samples, ``s``
-    rows."""
+    rows. ``kind`` ``rate``: what the rows laid (``unit`` kg/ha); ``depth``: the seeding depth
+    they sowed (``unit`` mm)."""
 
     field: Field
     prescription: PrescriptionMap | None
@@ -72,26 +82,30 @@ class FieldRunMap:
     east_m: np.ndarray
     north_m: np.ndarray
     heading_deg: np.ndarray
-    mass_g: np.ndarray
-    """(k, s) mass a row laid from sample k to k+1 (0 at the last sample)."""
+    amount: np.ndarray
+    """(k, s) the value times the ground it covers, from sample k to k+1 (0 at the last
+    sample): kg/ha x m² (10 x the mass laid, g) for a rate, mm x m² for a depth."""
     area_m2: np.ndarray
     """(k, s) the strip its opener crossed meanwhile."""
     applying: np.ndarray
-    """(k, s) the row applied from sample k to k+1."""
+    """(k, s) the row applied (sowed) from sample k to k+1."""
     zone: np.ndarray
     """(k, s) the map's zone under the opener at sample k (-1: outside every zone)."""
+    unit: str = UNIT
+    kind: str = "rate"
 
     @property
     def rate(self) -> np.ndarray:
-        """(k, s) kg/ha laid from sample k to k+1 (0 where the row did not apply)."""
+        """(k, s) the value from sample k to k+1 (kg/ha laid, or mm sown; 0 where the row did
+        not apply)."""
         with np.errstate(divide="ignore", invalid="ignore"):
-            rate = np.where(self.area_m2 > 0, 10.0 * self.mass_g / self.area_m2, 0.0)
+            rate = np.where(self.area_m2 > 0, self.amount / self.area_m2, 0.0)
         return np.where(self.applying, rate, 0.0)
 
     @cached_property
     def as_applied(self) -> AsAppliedRecord:
         """The samples as an :class:`~hil.isobus.field.AsAppliedRecord` (its map's writer)."""
-        record = AsAppliedRecord(self.boom, self.field.frame, UNIT)
+        record = AsAppliedRecord(self.boom, self.field.frame, self.unit)
         rate = self.rate
         for k in range(self.t_s.size):
             pose = SimpleNamespace(t_s=self.t_s[k], east_m=self.east_m[k],
@@ -144,7 +158,7 @@ class FieldRunMap:
     def _zone_rate(self, index: int, name: str, prescribed: float) -> ZoneRate:
         on = self.applying & (self.zone == index)
         area = float(self.area_m2[on].sum())
-        laid = 10.0 * float(self.mass_g[on].sum()) / area if area > 0 else None
+        laid = float(self.amount[on].sum()) / area if area > 0 else None
         return ZoneRate(index, name, prescribed, laid, area)
 
     def save_geojson(self, path: Path) -> None:
@@ -152,23 +166,31 @@ class FieldRunMap:
         Path(path).write_text(json.dumps(self.geojson) + "\n", encoding="utf-8")
 
 
-def field_run_map(record: Mapping[str, Any], traces: Mapping[str, np.ndarray]) -> FieldRunMap:
-    """A run's :class:`FieldRunMap` from its ``record.json`` and ``traces.npz``.
+def field_run_map(record: Mapping[str, Any], traces: Mapping[str, np.ndarray],
+                  truth: Mapping[str, np.ndarray] | None = None) -> FieldRunMap:
+    """A run's :class:`FieldRunMap` from its ``record.json``, ``traces.npz`` and (a depth run)
+    ``truth.npz``.
 
     Raises
     ------
     FieldMapError
         Not a field run, a geometry or file the truth names that cannot be read, or a trace
-        missing (naming it).
+        or truth array missing (naming it).
     """
     if not is_field_run(record):
         raise FieldMapError("record.json: no truth.field_run (not a field run under a TC)")
+    run = record["truth"]["field_run"]
+    if "seed_line" in run:
+        from hil.report.field_depth import sown_map
+
+        return sown_map(run, traces, truth)
     try:
-        laid = laid_from_run(record["truth"]["field_run"], traces)
+        laid = laid_from_run(run, traces)
     except LaidError as exc:
         raise FieldMapError(str(exc)) from None
     rx = laid.prescription
     if rx is not None and rx.unit.name != UNIT:
         raise FieldMapError(f"{rx.source}: a map in {rx.unit.name}; the rig lays mass ({UNIT})")
     return FieldRunMap(laid.field, rx, laid.boom, laid.t_s, laid.east_m, laid.north_m,
-                       laid.heading_deg, laid.mass_g, laid.area_m2, laid.applying, laid.zone)
+                       laid.heading_deg, 10.0 * laid.mass_g, laid.area_m2, laid.applying,
+                       laid.zone)

@@ -1,6 +1,7 @@
 """The "Field runs under the Task Controller" section: for each field run, the prescription map
 and the as-applied map side by side at one scale and one colour scale, a table per zone of the
-rate prescribed and the rate laid, and the as-applied map as GeoJSON beside the report.
+rate prescribed and the rate laid (the depth rig: the seeding depth prescribed and the depth
+sown), and the as-applied map as GeoJSON beside the report.
 
 What was laid where comes from the run's traces and truth (:mod:`hil.report.field_maps`); the
 numbers already judged are the run's ``isobus.*`` measurements in the record.
@@ -20,7 +21,6 @@ from shapely.geometry.base import BaseGeometry
 
 from hil.limits import is_conformance
 from hil.report.field_maps import (
-    UNIT,
     FieldMapError,
     FieldRunMap,
     ZoneRate,
@@ -33,8 +33,29 @@ from hil.report.record import MeasurementRow, QualRecord
 from hil.report.rundata import RunData
 
 SECTION_ID = "field-maps"
-ZONE_HEADERS = ("zone", f"prescribed ({UNIT})", f"laid ({UNIT})", "laid vs prescribed",
-                "ground applied", "judged (isobus.field.rate_accuracy)")
+
+
+@dataclass(frozen=True)
+class Words:
+    """How a map's kind is named on the page."""
+
+    done: str            # "laid", "sown"
+    right_title: str
+    judged: str          # the measurement the zone table shows
+
+
+WORDS = {"rate": Words("laid", "as applied (truth)", "isobus.field.rate_accuracy"),
+         "depth": Words("sown", "as sown (truth)", "isobus.depth.zone_error")}
+
+
+def zone_headers(m: FieldRunMap) -> tuple[str, ...]:
+    """The zone table's column heads for ``m``'s kind and unit."""
+    w = WORDS[m.kind]
+    return ("zone", f"prescribed ({m.unit})", f"{w.done} ({m.unit})",
+            f"{w.done} vs prescribed", "ground " + ("applied" if m.kind == "rate" else "sown"),
+            f"judged ({w.judged})")
+
+
 #: the colour of a zone whose rate is 0 (nothing to apply): not on the rate scale
 ZERO_COLOUR = "#e4e4e4"
 COLOURMAP = "viridis"
@@ -45,14 +66,15 @@ MAX_HEIGHT_IN = 7.5
 MIN_HEIGHT_IN = 3.2
 _BLURB = (
     "For each field run under the rig's Task Controller: left, the prescription map (zones "
-    "filled by their rate; solid line the field boundary, dashed the work area, grey the "
-    "path the tractor drove from the dot); right, the as-applied map from the truth (each "
-    "row's strip, per metre of travel, in the colour of the rate it laid: mass delivered at "
-    "the opener over the ground it crossed; rows switched off left blank). Both maps share "
-    "the scale and the colour scale. The table gives per zone the rate laid over all the "
-    "ground the rows applied on (boundaries and switches included) and, where the suite "
-    "judged it, the rate accuracy at steady speed away from them. The as-applied map is "
-    "also written as GeoJSON (RFC 7946, WGS84) for GIS tools.")
+    "filled by their rate, or their seeding depth; solid line the field boundary, dashed the "
+    "work area, grey the path the tractor drove from the dot); right, the as-applied map from "
+    "the truth (each row's strip, per metre of travel, in the colour of what it laid: the "
+    "fertilizer rig's mass delivered at the opener over the ground it crossed, rows switched "
+    "off left blank; the depth rig's true depth of the seeds its row sowed, headland turns "
+    "left blank). Both maps share the scale and the colour scale. The table gives per zone "
+    "what was laid or sown over all the ground the rows worked (boundaries and switches "
+    "included) and, where the suite judged it, the zone's measurement away from them. The "
+    "as-applied map is also written as GeoJSON (RFC 7946, WGS84) for GIS tools.")
 
 
 @dataclass(frozen=True)
@@ -186,7 +208,7 @@ def draw_maps(fig: Any, m: FieldRunMap) -> DrawnMaps:
         right.text(0.5, 0.5, "nothing laid", transform=right.transAxes, ha="center",
                    va="center", fontsize=LABEL_PT, color="#444444", zorder=5,
                    bbox={"fc": "white", "ec": "#999999", "pad": 3})
-    for ax, title in ((left, "prescription map"), (right, "as applied (truth)")):
+    for ax, title in ((left, "prescription map"), (right, WORDS[m.kind].right_title)):
         _outline(ax, m)
         ax.set_title(title, fontsize=TITLE_PT, loc="left")
         ax.set_xlabel("east [m]", fontsize=LABEL_PT)
@@ -199,7 +221,7 @@ def draw_maps(fig: Any, m: FieldRunMap) -> DrawnMaps:
     left.set_ylim(y0, y1)
     bar = fig.colorbar(ScalarMappable(norm=scale.norm, cmap=scale.cmap), cax=cax,
                        extend="both" if scale.ticks else "neither")
-    bar.set_label(UNIT, fontsize=LABEL_PT)
+    bar.set_label(m.unit, fontsize=LABEL_PT)
     if scale.ticks:
         bar.set_ticks(list(scale.ticks))
     bar.ax.tick_params(labelsize=TEXT_PT)
@@ -249,13 +271,15 @@ def geojson_name(run_dir: str) -> str:
     return f"as-applied-{slug}.geojson"
 
 
-def _zone_row(z: ZoneRate, judged: Sequence[MeasurementRow]) -> str:
+def _zone_row(z: ZoneRate, judged: Sequence[MeasurementRow], m: FieldRunMap) -> str:
     if z.laid is None:
         diff = DASH
+    elif m.kind == "depth":
+        diff = f"{z.laid - z.prescribed:+.1f} {m.unit}"
     elif z.prescribed > 0:
         diff = f"{(z.laid - z.prescribed) / z.prescribed * 100:+.1f} %"
     else:
-        diff = f"{fmt_num(round(z.laid, 1))} {UNIT} over none"
+        diff = f"{fmt_num(round(z.laid, 1))} {m.unit} over none"
     marks = " ".join(f"{esc(fmt_num(ms.value))} {esc(ms.unit)} {badge(ms.status)}"
                      for ms in judged) or DASH
     laid = DASH if z.laid is None else fmt_num(round(z.laid, 1))
@@ -263,26 +287,34 @@ def _zone_row(z: ZoneRate, judged: Sequence[MeasurementRow]) -> str:
                 esc(f"{z.area_m2:.1f} m²"), marks])
 
 
+def _zone_key(m: FieldRunMap, z: ZoneRate) -> str:
+    """How the zone's measurement names the zone: the fertilizer suite by the zone's name,
+    the depth suite by its depth ("40 mm")."""
+    return f"{z.prescribed:g} {m.unit}" if m.kind == "depth" else z.name
+
+
 def _zone_table(m: FieldRunMap, run: RunData) -> str:
+    judged_name = WORDS[m.kind].judged
     accuracy: dict[str, list[MeasurementRow]] = {}
     for ms in run.measurements:
-        if ms.name == "isobus.field.rate_accuracy":
+        if ms.name == judged_name:
             accuracy.setdefault(str(ms.conditions.get("zone")), []).append(ms)
-    rows = [_zone_row(z, accuracy.get(z.name, []) if z.index >= 0 else [])
+    rows = [_zone_row(z, accuracy.get(_zone_key(m, z), []) if z.index >= 0 else [], m)
             for z in m.zone_rates()]
     if not rows:
         return note("the run had no prescription map: no zones to compare")
-    return table(ZONE_HEADERS, rows, "zones")
+    return table(zone_headers(m), rows, "zones")
 
 
-def _judged(run: RunData) -> str:
+def _judged(run: RunData, m: FieldRunMap) -> str:
+    in_table = WORDS[m.kind].judged
     items = "".join(
         f"<li><code>{esc(ms.name)}</code> {esc(ms.conditions_label)} = "
         + ("<i>no value</i>" if ms.value is None else
            f"<b>{esc(fmt_num(ms.value))}</b> {esc(ms.unit)}") + f" {badge(ms.status)}</li>"
         for ms in run.measurements
         if ms.name.startswith("isobus.") and not is_conformance(ms.name)
-        and ms.name != "isobus.field.rate_accuracy")
+        and ms.name != in_table)
     return f'<ul class="mlist">{items}</ul>' if items else ""
 
 
@@ -292,7 +324,7 @@ def _run_block(run: RunData, qual_dir: Path) -> str:
     if run.traces is None:
         return head + note(f"{run.ref.dir}: no traces, no maps")
     try:
-        m = field_run_map(run.record, run.traces)
+        m = field_run_map(run.record, run.traces, run.truth)
         image = maps_image(m, f"prescription and as-applied maps of {run.ref.dir} "
                               f"({run.scenario})")
     except FieldMapError as exc:
@@ -304,15 +336,15 @@ def _run_block(run: RunData, qual_dir: Path) -> str:
         m.save_geojson(qual_dir / name)
         geo = (f"{link(name, 'as-applied map (GeoJSON)')}: "
                f"{len(m.geojson['features'])} row strip segments, WGS84, "
-               f"property <code>rate</code> in {esc(UNIT)}")
+               f"property <code>rate</code> in {esc(m.unit)}")
     except OSError as exc:
         geo = esc(f"the as-applied GeoJSON could not be written: {exc}")
     rx = m.prescription
     source = (f"map <code>{esc(Path(rx.source).name)}</code>, "
-              f"default {esc(fmt_num(rx.default_rate))} {esc(UNIT)}; " if rx else "")
+              f"default {esc(fmt_num(rx.default_rate))} {esc(m.unit)}; " if rx else "")
     return (head + '<div class="grid">'
             f'<div class="plot">{figure(image)}</div>'
-            f'<div>{_zone_table(m, run)}<p class="small">{source}{geo}</p>{_judged(run)}'
+            f'<div>{_zone_table(m, run)}<p class="small">{source}{geo}</p>{_judged(run, m)}'
             "</div></div>")
 
 
