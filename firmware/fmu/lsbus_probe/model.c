@@ -1,4 +1,5 @@
-/* A diagnostic LS-BUS CAN node: it reports, in a frame, what the bus simulation told it.
+/* A diagnostic LS-BUS CAN node (common/lsbus_fmu.h): it reports, in a frame, what the bus
+ * simulation told it.
  *
  * Report frame (id `report_id`, default 0x1A0, 8 bytes): confirms, arbitration lost, bus
  * errors, bus errors as sender, last status (1 active, 2 passive, 3 bus off), frames received
@@ -10,44 +11,34 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "model.h"
+#include "lsbus_fmu.h"
 
 #define SYNC_ID 0x080u
 
-static void start(ModelInstance *comp)
+const lsbus_param_t lsbus_model_params[] = {
+    LSBUS_PARAM(vr_report_id, LSBUS_PARAM_INT32, "report_id", report_id),
+    LSBUS_PARAM(vr_fd_at_step, LSBUS_PARAM_INT32, "fd_at_step", fd_at_step),
+    LSBUS_PARAM(vr_baudrate, LSBUS_PARAM_INT32, "baudrate", baudrate),
+    LSBUS_PARAM(vr_arbitration, LSBUS_PARAM_INT32, "arbitration", arbitration),
+    LSBUS_PARAM(vr_wakeup_at_step, LSBUS_PARAM_INT32, "wakeup_at_step", wakeup_at_step),
+    LSBUS_PARAM(vr_crash_at_step, LSBUS_PARAM_INT32, "crash_at_step", crash_at_step),
+};
+const size_t lsbus_model_param_count = sizeof lsbus_model_params / sizeof lsbus_model_params[0];
+
+void lsbus_model_defaults(ModelInstance *comp)
 {
-    if (M(started)) {
-        return;
-    }
-    M(started) = true;
+    M(report_id) = 0x1A0;
+}
+
+bool lsbus_model_start(ModelInstance *comp)
+{
     if (M(baudrate) > 0) {
         lsbus_node_configure_baudrate(&M(node), (uint32_t)M(baudrate));
     }
     if (M(arbitration) > 0) {
         lsbus_node_configure_arbitration(&M(node), (uint8_t)M(arbitration));
     }
-}
-
-Status setStartValues(ModelInstance *comp)
-{
-    memset(&M(node), 0, sizeof M(node));
-    lsbus_node_init(&M(node));
-    M(started) = false;
-    M(tick) = false;
-    M(syncs) = 0;
-    M(report_id) = 0x1A0;
-    M(fd_at_step) = 0;
-    M(baudrate) = 0;
-    M(arbitration) = 0;
-    M(wakeup_at_step) = 0;
-    M(crash_at_step) = 0;
-    return OK;
-}
-
-Status calculateValues(ModelInstance *comp)
-{
-    UNUSED(comp);
-    return OK;
+    return true;
 }
 
 static void report(ModelInstance *comp)
@@ -68,9 +59,8 @@ static void report(ModelInstance *comp)
     lsbus_node_transmit(&M(node), &f);
 }
 
-static void on_frame(void *ctx, const hal_can_frame_t *f)
+void lsbus_model_on_frame(ModelInstance *comp, const hal_can_frame_t *f)
 {
-    ModelInstance *comp = (ModelInstance *)ctx;
     if (f->extended || f->id != SYNC_ID) {
         return;
     }
@@ -87,141 +77,9 @@ static void on_frame(void *ctx, const hal_can_frame_t *f)
 #endif
 }
 
-Status eventUpdate(ModelInstance *comp)
-{
-    start(comp);
-    if (!lsbus_node_read(&M(node), on_frame, comp)) {
-        logError(comp, "Rx_Data holds a malformed operation");
-        return Error;
-    }
-    if (M(tick)) {
-        M(tick) = false;
-        report(comp);
-    }
-    comp->valuesOfContinuousStatesChanged = false;
-    comp->nominalsOfContinuousStatesChanged = false;
-    comp->newDiscreteStatesNeeded = false;
-    comp->terminateSimulation = false;
-    comp->nextEventTimeDefined = false;
-    return OK;
-}
-
-Status getFloat64(ModelInstance *comp, ValueReference vr, double values[], size_t nValues,
-                  size_t *index)
-{
-    ASSERT_NVALUES(1);
-    if (vr != vr_time) {
-        logError(comp, "Get Float64 is not allowed for value reference %u.", (unsigned)vr);
-        return Error;
-    }
-    values[(*index)++] = comp->time;
-    return OK;
-}
-
-static int32_t *int_param(ModelInstance *comp, ValueReference vr)
-{
-    switch (vr) {
-    case vr_report_id: return &M(report_id);
-    case vr_fd_at_step: return &M(fd_at_step);
-    case vr_baudrate: return &M(baudrate);
-    case vr_arbitration: return &M(arbitration);
-    case vr_wakeup_at_step: return &M(wakeup_at_step);
-    case vr_crash_at_step: return &M(crash_at_step);
-    default: return NULL;
-    }
-}
-
-Status getInt32(ModelInstance *comp, ValueReference vr, int32_t values[], size_t nValues,
-                size_t *index)
-{
-    ASSERT_NVALUES(1);
-    int32_t *p = int_param(comp, vr);
-    if (p == NULL) {
-        logError(comp, "Get Int32 is not allowed for value reference %u.", (unsigned)vr);
-        return Error;
-    }
-    values[(*index)++] = *p;
-    return OK;
-}
-
-Status setInt32(ModelInstance *comp, ValueReference vr, const int32_t values[], size_t nValues,
-                size_t *index)
-{
-    ASSERT_NVALUES(1);
-    int32_t *p = int_param(comp, vr);
-    if (p == NULL || M(started)) {
-        logError(comp, "Set Int32 is not allowed for value reference %u now.", (unsigned)vr);
-        return Error;
-    }
-    *p = values[(*index)++];
-    return OK;
-}
-
-Status setBoolean(ModelInstance *comp, ValueReference vr, const bool values[], size_t nValues,
-                  size_t *index)
-{
-    ASSERT_NVALUES(1);
-    if (vr != vr_bus_notifications) {
-        logError(comp, "Set Boolean is not allowed for value reference %u.", (unsigned)vr);
-        return Error;
-    }
-    M(node).notifications = values[(*index)++];
-    return OK;
-}
-
-Status getBinary(ModelInstance *comp, ValueReference vr, size_t sizes[], const char *values[],
-                 size_t nValues, size_t *index)
-{
-    ASSERT_NVALUES(1);
-    if (vr != vr_tx_data) {
-        logError(comp, "Get Binary is not allowed for value reference %u.", (unsigned)vr);
-        return Error;
-    }
-    start(comp);
-    size_t len = 0;
-    const uint8_t *data = lsbus_node_tx(&M(node), &len);
-    sizes[*index] = len;
-    values[*index] = (const char *)data;
-    (*index)++;
-    return OK;
-}
-
-Status setBinary(ModelInstance *comp, ValueReference vr, const size_t size[],
-                 const char *const values[], size_t nValues, size_t *index)
-{
-    ASSERT_NVALUES(1);
-    if (vr != vr_rx_data ||
-        !lsbus_node_set_rx(&M(node), (const uint8_t *)values[*index], size[*index])) {
-        logError(comp, "Set Binary is not allowed for value reference %u.", (unsigned)vr);
-        return Error;
-    }
-    (*index)++;
-    return OK;
-}
-
-Status activateClock(ModelInstance *comp, ValueReference vr)
-{
-    if (vr == vr_rx_clock) {
-        M(node).rx_clock = true;
-        return OK;
-    }
 #ifdef PROBE_TIMED
-    if (vr == vr_tx_clock) {
-        M(tick) = true;
-        return OK;
-    }
-#endif
-    logError(comp, "Activate Clock is not allowed for value reference %u.", (unsigned)vr);
-    return Error;
-}
-
-Status getClock(ModelInstance *comp, ValueReference vr, bool *value)
+void lsbus_model_on_tick(ModelInstance *comp)
 {
-    if (vr != vr_tx_clock) {
-        logError(comp, "Get Clock is not allowed for value reference %u.", (unsigned)vr);
-        return Error;
-    }
-    start(comp);
-    *value = lsbus_node_take_tx_clock(&M(node));
-    return OK;
+    report(comp);
 }
+#endif
