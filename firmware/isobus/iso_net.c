@@ -19,7 +19,8 @@ enum { CM_RTS = 16, CM_CTS = 17, CM_EOMA = 19, CM_BAM = 32, CM_ETP_RTS = 20, CM_
        CM_ETP_DPO = 22, CM_ETP_EOMA = 23, CM_ABORT = 255 };
 enum { ABORT_ALREADY_IN_SESSION = 1, ABORT_RESOURCES = 2, ABORT_TIMEOUT = 3,
        ABORT_MAX_RETRANSMIT = 5, ABORT_UNEXPECTED_DATA = 6, ABORT_BAD_SEQUENCE = 7,
-       ABORT_DUPLICATE_SEQUENCE = 8, ABORT_OTHER = 250 };
+       ABORT_DUPLICATE_SEQUENCE = 8, ABORT_CTS_PGN = 14, ABORT_CTS_EXCEEDS_SIZE = 15,
+       ABORT_OTHER = 250 };
 
 uint32_t iso_can_id(uint8_t priority, uint32_t pgn, uint8_t source, uint8_t destination)
 {
@@ -140,7 +141,8 @@ static void tp_cm(iso_net_t *n, const iso_tp_sender_t *s, const uint8_t body[5])
 {
     uint8_t data[8] = {body[0], body[1], body[2], body[3], body[4], (uint8_t)(s->pgn & 0xFFu),
                        (uint8_t)((s->pgn >> 8) & 0xFFu), (uint8_t)((s->pgn >> 16) & 0xFFu)};
-    emit(n, TP_PRIORITY, ISO_PGN_TP_CM, s->source, s->destination, data, 8);
+    emit(n, TP_PRIORITY, s->etp ? ISO_PGN_ETP_CM : ISO_PGN_TP_CM, s->source, s->destination,
+         data, 8);
 }
 
 /* the open session to `destination`, or NULL */
@@ -175,11 +177,18 @@ static void tp_start(iso_net_t *n, iso_tp_sender_t *s, const iso_group_t *g, uin
     s->priority = g->priority;
     s->data = g->big;
     s->size = g->big_len;
-    s->total = (uint16_t)((g->big_len + 6u) / 7u);
+    s->total = (g->big_len + 6u) / 7u;
     s->next_packet = 1;
-    uint8_t rts[5] = {CM_RTS, (uint8_t)(s->size & 0xFFu), (uint8_t)(s->size >> 8),
-                      (uint8_t)s->total, 0xFF};
-    tp_cm(n, s, rts);
+    s->etp = g->big_len > ISO_TP_MAX_BYTES;
+    if (s->etp) {
+        uint8_t rts[5] = {CM_ETP_RTS, (uint8_t)(s->size & 0xFFu), (uint8_t)((s->size >> 8) & 0xFFu),
+                          (uint8_t)((s->size >> 16) & 0xFFu), (uint8_t)(s->size >> 24)};
+        tp_cm(n, s, rts);
+    } else {
+        uint8_t rts[5] = {CM_RTS, (uint8_t)(s->size & 0xFFu), (uint8_t)(s->size >> 8),
+                          (uint8_t)s->total, 0xFF};
+        tp_cm(n, s, rts);
+    }
     s->waiting = TP_WAIT_CTS;
     s->deadline = n->now + TP_T3_S;
 }
@@ -217,16 +226,22 @@ static void tp_abort(iso_net_t *n, iso_tp_sender_t *s, uint8_t reason)
     tp_end(n, s);
 }
 
-static void tp_on_cts(iso_net_t *n, iso_tp_sender_t *s, uint8_t packets, uint8_t next)
+/* A CTS (TP) or an ETP CTS (next: the packet number, 1-based; the ETP's 24-bit one). */
+static void tp_on_cts(iso_net_t *n, iso_tp_sender_t *s, uint8_t packets, uint32_t next,
+                      uint32_t pgn)
 {
+    if (s->etp && pgn != s->pgn) {
+        tp_abort(n, s, ABORT_CTS_PGN);
+        return;
+    }
     if (packets == 0) {
         s->waiting = TP_HELD;
         s->deadline = n->now + TP_T4_S;
         return;
     }
-    unsigned last = (unsigned)next + packets - 1u;
+    uint32_t last = next + packets - 1u;
     if (next < 1 || last > s->total) {
-        tp_abort(n, s, ABORT_OTHER);
+        tp_abort(n, s, s->etp ? ABORT_CTS_EXCEEDS_SIZE : ABORT_OTHER);
         return;
     }
     if (next < s->next_packet) {
@@ -236,16 +251,25 @@ static void tp_on_cts(iso_net_t *n, iso_tp_sender_t *s, uint8_t packets, uint8_t
             return;
         }
     }
-    for (unsigned k = next; k <= last; k++) {
+    uint32_t offset = 0;
+    if (s->etp) {
+        /* the data packet offset: the packets that follow count from it */
+        offset = next - 1u;
+        uint8_t dpo[5] = {CM_ETP_DPO, packets, (uint8_t)(offset & 0xFFu),
+                          (uint8_t)((offset >> 8) & 0xFFu), (uint8_t)((offset >> 16) & 0xFFu)};
+        tp_cm(n, s, dpo);
+    }
+    for (uint32_t k = next; k <= last; k++) {
         uint8_t data[8];
         memset(data, 0xFF, sizeof data);
-        data[0] = (uint8_t)k;
-        size_t at = (k - 1u) * 7u;
+        data[0] = (uint8_t)(k - offset);
+        size_t at = (size_t)(k - 1u) * 7u;
         size_t take = s->size - at < 7u ? s->size - at : 7u;
         memcpy(data + 1, s->data + at, take);
-        emit(n, TP_PRIORITY, ISO_PGN_TP_DT, s->source, s->destination, data, 8);
+        emit(n, TP_PRIORITY, s->etp ? ISO_PGN_ETP_DT : ISO_PGN_TP_DT, s->source,
+             s->destination, data, 8);
         if (k + 1u > s->next_packet) {
-            s->next_packet = (uint16_t)(k + 1u);
+            s->next_packet = k + 1u;
         }
     }
     s->waiting = s->next_packet > s->total ? TP_WAIT_EOMA : TP_WAIT_CTS;
@@ -433,8 +457,14 @@ static void tp_on_cm(iso_net_t *n, bool extended, const uint8_t *d, size_t len, 
         }
         break;
     case CM_CTS:
-        if (mine && pgn == s->pgn) {
-            tp_on_cts(n, s, d[1], d[2]);
+        if (mine && !s->etp && pgn == s->pgn) {
+            tp_on_cts(n, s, d[1], d[2], pgn);
+        }
+        break;
+    case CM_ETP_CTS:
+        if (mine && s->etp) {
+            tp_on_cts(n, s, d[1], (uint32_t)d[2] | ((uint32_t)d[3] << 8) | ((uint32_t)d[4] << 16),
+                      pgn);
         }
         break;
     case CM_EOMA:
@@ -452,7 +482,7 @@ static void tp_on_cm(iso_net_t *n, bool extended, const uint8_t *d, size_t len, 
         }
         break;
     default:
-        break; /* ETP CTS / DPO: no ETP session here (see iso_net.h) */
+        break; /* an ETP DPO: no ETP receiving here (see iso_net.h) */
     }
 }
 
@@ -513,7 +543,8 @@ static void flush(iso_net_t *n)
 void iso_net_send(iso_net_t *n, uint32_t pgn, const uint8_t *data, size_t len,
                   uint8_t destination, uint8_t priority)
 {
-    if (n->nqueue >= ISO_NET_QUEUE || len > ISO_TP_MAX_BYTES) {
+    size_t most = destination == ISO_GLOBAL ? ISO_TP_MAX_BYTES : ISO_ETP_MAX_BYTES;
+    if (n->nqueue >= ISO_NET_QUEUE || len > most) {
         n->dropped++;
         return;
     }
@@ -527,7 +558,7 @@ void iso_net_send(iso_net_t *n, uint32_t pgn, const uint8_t *data, size_t len,
         memcpy(g->data, data, len);
     } else {
         g->big = data;
-        g->big_len = (uint16_t)len;
+        g->big_len = (uint32_t)len;
     }
     flush(n);
 }

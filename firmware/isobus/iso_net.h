@@ -21,9 +21,12 @@
  * (RTS with "no limit" 0xFF packets per CTS; every packet a CTS asks for at once; T3 = 1.25 s
  * for the next CTS or the end-of-message acknowledgement, T4 = 1.05 s after a hold; a timeout
  * aborts with reason 3; a CTS beyond the message aborts with 250, a third retransmission
- * request with 5). Up to ISO_NET_TP_SENDERS sessions at once, each to another peer (the TC's
- * DDOP and the VT's pool may go at the same time); a second long group to the same peer waits
- * for the first (ISO_NET_TP_QUEUE). Not implemented (the controller sends none): BAM, ETP.
+ * request with 5). Beyond 1785 bytes, ETP (ISO 11783-3 clause 5.11: ETP RTS, for each ETP CTS
+ * a DPO and its packets numbered from the DPO's offset, ETP EOMA; an ETP CTS for another PGN:
+ * abort 14, beyond the message: abort 15). Up to ISO_NET_TP_SENDERS sessions at once, each to
+ * another peer (the TC's DDOP and the VT's pool may go at the same time); a second long group
+ * to the same peer waits for the first (ISO_NET_TP_QUEUE). Not implemented (the controller
+ * sends none): BAM.
  *
  * Receiving: TP RTS/CTS (at most 16 packets per CTS, or the RTS's limit; T2 = 1.25 s for the
  * first packet after a CTS, T1 = 0.75 s between packets; out of order: abort 7, a repeat: 8,
@@ -46,6 +49,7 @@
 #define ISO_NULL 0xFEu
 #define ISO_NO_ADDRESS (-1)
 #define ISO_TP_MAX_BYTES 1785u
+#define ISO_ETP_MAX_BYTES 117440505u
 #define ISO_NET_MAX_OUT 320 /* frames one call can produce: a CTS window of 255 packets + more */
 #define ISO_NET_QUEUE 16    /* groups held while the claim settles */
 #define ISO_NET_TP_QUEUE 2  /* long groups waiting for the TP session to the same peer */
@@ -69,19 +73,20 @@ typedef struct {
     uint8_t len;          /* <= 8: data[]; otherwise the group is `big` */
     uint8_t data[8];
     const uint8_t *big;   /* a long group (the caller keeps it alive until sent) */
-    uint16_t big_len;
+    uint32_t big_len;
 } iso_group_t;
 
 typedef enum { TP_IDLE, TP_WAIT_CTS, TP_WAIT_EOMA, TP_HELD } iso_tp_wait_t;
 
 typedef struct {
     bool open;
+    bool etp;             /* beyond ISO_TP_MAX_BYTES: ETP (RTS, CTS, DPO, data, EOMA) */
     uint32_t pgn;
     uint8_t source, destination, priority;
     const uint8_t *data;
-    uint16_t size;
-    uint16_t total;       /* packets */
-    uint16_t next_packet; /* highest packet sent + 1 */
+    uint32_t size;
+    uint32_t total;       /* packets */
+    uint32_t next_packet; /* highest packet sent + 1 */
     uint8_t retransmits;
     iso_tp_wait_t waiting;
     double deadline;

@@ -8,7 +8,7 @@
  * initiating bit (then every second, without it); get memory with the pool's size (refused:
  * quiet, for good), get number of soft keys, get text font data, get hardware; with a version
  * label, get versions: when the VT has the label, load version (connected when it loads, else
- * upload); otherwise upload: the object pool transfer (0x11 + the pool, by TP) once the
+ * upload); otherwise upload: the object pool transfer (0x11 + the pool, by TP or ETP) once the
  * network has no transfer open or waiting, then end of object pool (refused: the response's
  * error codes and faulty object are kept, quiet for good); with a label, store version;
  * connected.
@@ -37,7 +37,7 @@
 #define ISO_PGN_VT_TO_ECU 0xE600u
 #define ISO_PGN_ECU_TO_VT 0xE700u
 #define ISO_VT_LABEL_LENGTH 7
-#define ISO_VT_MAX_TRANSFER ISO_TP_MAX_BYTES /* 0x11 + the pool: TP only (no ETP sending) */
+#define ISO_VT_MAX_TRANSFER 2305 /* 0x11 + a pool of up to 2,304 bytes (by ETP beyond 1,785) */
 #define ISO_VT_COMMANDS 32     /* commands waiting for the VT (more are counted, not kept) */
 #define ISO_VT_COMMAND_BYTES 40 /* the longest: change string value of 32 characters */
 
@@ -132,7 +132,7 @@ typedef struct {
 } vtc_t;
 
 /* Set up with the pool (without the 0x11 byte) and its 7-byte version label (NULL: always
- * upload). Returns 0, -1 when the pool does not fit one TP transfer. */
+ * upload). Returns 0, -1 when the pool does not fit ISO_VT_MAX_TRANSFER. */
 int vtc_init(vtc_t *c, iso_net_t *net, const uint8_t *pool, size_t pool_len, const char *label,
              vtc_implement_t impl);
 
