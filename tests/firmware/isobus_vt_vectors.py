@@ -395,6 +395,100 @@ def pool_lines() -> list[str]:
     return lines
 
 
+# --- ETP: the network layer alone sending a pool of 16 rows -------------------------------------
+ETP_FILE = "vt-net-etp.frames"
+#: the steps (0.1 s each) at which the function sends the 16-row pool transfer to the peer
+ETP_SENDS = (0, 10, 15, 20, 40)
+
+
+class SteppedNetwork(Device):
+    """The Python network with the implement's NAME at 0x81, stepped as the controller steps
+    it (every 0.1 s; what it answers between steps goes with the next), sending the 16-row VT
+    pool transfer (2,075 bytes: ETP) to 0x26 at the steps of ``ETP_SENDS`` (from an
+    application the network ticks, after its transport's timeouts, as the VT client sends);
+    a SYNC line marks each step in the record."""
+
+    def __init__(self) -> None:
+        from hil.isobus.network import IsobusNetwork
+        from reference_controllers.fertilizer.isobus_mode import implement_name
+        self.network = IsobusNetwork()
+        self.port = self.network.add(implement_name(0x0F27), ME, "implement")
+        self.payload = b"\x11" + meter_vt_pool(16).to_bytes()
+        self.steps = 0
+        self.port.run(self)
+        self.lines = ["> 710#00"]
+        self._replies: list[can.Message] = []
+        self._now = 0.0
+
+    def next_due(self, time_s: float) -> float:
+        return max(self.steps * 0.1, math.nextafter(time_s, math.inf))
+
+    def emit(self, time_s: float) -> list[can.Message]:
+        self._now = self.steps * 0.1
+        self.lines.append("< 080#")
+        out = self._replies + self.network.emit(self._now)
+        self._replies = []
+        self.steps += 1
+        self.lines.extend(f"> {frame_text(f)}" for f in out)
+        return out
+
+    def tick(self, now_s: float) -> None:
+        """The application's tick (once per step: the network ticks it every 10 ms)."""
+        if self.steps in ETP_SENDS:
+            self.port.send(0xE700, self.payload, VT, 5)
+
+    def accepts(self, msg: can.Message) -> bool:
+        return bool(msg.is_extended_id)
+
+    def on_frame(self, msg: can.Message, time_s: float) -> list[can.Message]:
+        self.lines.append(f"< {frame_text(msg)}")
+        self._replies += self.network.on_frame(msg, self._now)
+        return []
+
+
+def _etp_cm(hex_data: str) -> can.Message:
+    return can.Message(arbitration_id=encode_id(7, 0xC800, VT, ME),
+                       data=bytes.fromhex(hex_data.replace(" ", "")), is_extended_id=True)
+
+
+def _etp_cts(packets: int, next_packet: int, pgn: int = 0xE700) -> can.Message:
+    return _etp_cm(bytes([0x15, packets]).hex() + next_packet.to_bytes(3, "little").hex()
+                   + pgn.to_bytes(3, "little").hex())
+
+
+def _etp_script() -> list[tuple[float, can.Message]]:
+    """A peer taking the 2,075 bytes (297 packets) by ETP, and refusing it in every way."""
+    return [
+        (0.05, can.Message(arbitration_id=encode_id(6, 0xEE00, VT, 0xFF), is_extended_id=True,
+                           data=(0xA00A_8000_0000_0001).to_bytes(8, "little"))),
+        # the first: 255 packets, a hold, 40, two again (a retransmission), the last 4, EOMA
+        (0.35, _etp_cts(255, 1)), (0.45, _etp_cts(0, 256)), (0.55, _etp_cts(40, 256)),
+        (0.65, _etp_cts(2, 290)), (0.75, _etp_cts(4, 294)),
+        (0.85, _etp_cm("17 1B 08 00 00 00 E7 00")),
+        # the second: an ETP CTS for another PGN (abort 14), a TP CTS ignored before it
+        (1.05, can.Message(arbitration_id=encode_id(7, 0xEC00, VT, ME), is_extended_id=True,
+                           data=bytes.fromhex("110101FFFF00E700"))),
+        (1.15, _etp_cts(10, 1, pgn=0xE600)),
+        # the third: a CTS beyond the message (abort 15)
+        (1.65, _etp_cts(10, 290)),
+        # the fourth: no CTS (T3, abort 3 at 3.25 s); the fifth: the peer aborts it
+        (4.25, _etp_cm("FF 02 FF FF FF 00 E7 00")),
+    ]
+
+
+def etp_lines() -> list[str]:
+    """The network-layer vector of ETP sending (``vt-net-etp.frames``)."""
+    node = SteppedNetwork()
+    VirtualWire([ScriptedNode(_etp_script(), "ETP peer"), node]).run_until(5.0)
+    head = ["# ETP sending: the network layer with the implement's NAME sends the VT pool transfer",
+            "# of 16 rows (2,075 bytes) to 0x26 five times: taken in windows (a hold, a",
+            "# retransmission, the end-of-message acknowledgement), a CTS for another PGN (abort",
+            "# 14), a CTS beyond the message (abort 15), no CTS (T3, abort 3), the peer's abort.",
+            f"# {node.steps} steps; written by python tests/firmware/isobus_vt_vectors.py"]
+    sends = ",".join(str(k) for k in ETP_SENDS)
+    return [*head, f"#params rows=16 sends={sends}", *node.lines]
+
+
 def write_all(names: list[str] | None = None) -> list[Path]:
     """Record the scenarios (all, or those named) and the pool file into ``DATA``."""
     paths = []
@@ -403,6 +497,10 @@ def write_all(names: list[str] | None = None) -> list[Path]:
             continue
         path = DATA / f"{s.name}{SUFFIX}"
         path.write_text("\n".join(record(s)) + "\n")
+        paths.append(path)
+    if not names or ETP_FILE in names:
+        path = DATA / ETP_FILE
+        path.write_text("\n".join(etp_lines()) + "\n")
         paths.append(path)
     if not names or POOL_FILE in names:
         path = DATA / POOL_FILE

@@ -109,7 +109,7 @@ def test_the_vt_vectors_cover_the_operator_path() -> None:
 
 def test_the_c_build_answers_the_vt_vectors_byte_for_byte(isobus_bin: Path) -> None:
     """What ctest's isobus_vt_vectors and isobus_vt_pool do, in the pytest run CI makes."""
-    vectors = sorted(rec.DATA.glob(f"vt-*{rec.SUFFIX}"))
+    vectors = sorted(p for p in rec.DATA.glob(f"vt-*{rec.SUFFIX}") if p.name != rec.ETP_FILE)
     assert {p.stem for p in vectors} == {s.name for s in rec.scenarios()}
     done = subprocess.run([str(isobus_bin.with_name("replay_isobus")), *map(str, vectors)],
                           capture_output=True, text=True, timeout=60)
@@ -298,3 +298,47 @@ def test_the_lockstep_comparison_fails_a_firmware_that_ignores_the_master_key(
     first = next((i for i, (a, b) in enumerate(zip(c, py, strict=False)) if a != b), None)
     assert first is not None
     assert 20.0 <= c[first][0] <= 20.5, (c[first], py[first])
+
+
+# ------------------------------------------------------------------ on the rig
+def _vt_firmware_profile(directory: Path) -> Path:
+    """The C firmware's DUT profile with its operator interface (``vt = "yes"``): the ISOBUS
+    firmware profile's, renamed (a profile's name is its file's)."""
+    text = (ROOT / "dut_profiles" / "fertilizer-piecewise-pid-isobus-firmware.toml").read_text()
+    name = "fertilizer-piecewise-pid-isobus-vt-firmware"
+    text = text.replace('name = "fertilizer-piecewise-pid-isobus-firmware"', f'name = "{name}"')
+    text = text.replace('controller = "piecewise-pid-isobus"',
+                        'controller = "piecewise-pid-isobus-vt"')
+    text = text.replace('\n[parameters]\n', '\n[parameters]\nvt = "yes"\n')
+    assert f'name = "{name}"' in text and 'vt = "yes"' in text
+    path = directory / f"{name}.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scenario", ["isobus-vt-operator", "isobus-vt-restart"])
+def test_on_the_rig_with_its_vt_the_c_firmware_gives_the_pythons_bus_log(
+        isobus_bin: Path, tmp_path: Path, scenario: str) -> None:
+    """The fertilizer rig's VT scenarios (the tractor's VT beside its TC, the operator's steps)
+    in lockstep with the C firmware on the software bus and with the Python implement in
+    process (its daemon profile, inline bus): the same bus.log, line for line (~20-60 s: the
+    first builds the firmware through the profile)."""
+    runs = {}
+    for name, profile, bus in (
+            ("c", _vt_firmware_profile(tmp_path), "softbus"),
+            ("python", ROOT / "dut_profiles" / "fertilizer-piecewise-pid-isobus-vt-daemon.toml",
+             "inline")):
+        out = tmp_path / name
+        done = subprocess.run([str(Path(sys.executable).with_name("hil")), "run", "--dut",
+                               str(profile), "--scenario", scenario, "--bus", bus, "--out",
+                               str(out)], capture_output=True, text=True, timeout=600, cwd=ROOT)
+        assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+        runs[name] = (out / "bus.log").read_text().splitlines()
+    c, python = runs["c"], runs["python"]
+    from_dut = [line for line in c if line.split()[-1:] == ["R"]]
+    assert len(from_dut) > 1000
+    first = next((i for i, (a, b) in enumerate(zip(c, python, strict=False)) if a != b), None)
+    assert first is None and len(c) == len(python), (
+        f"first difference at bus.log line {first}: C {c[first:first + 2] if first else c[-2:]},"
+        f" Python {python[first:first + 2] if first else python[-2:]}")
