@@ -118,6 +118,26 @@ static int32_t floordiv(int32_t a, int32_t b)
     return (a % b != 0 && ((a < 0) != (b < 0))) ? q - 1 : q;
 }
 
+/* The device object: designator, software version "1.0.0", NAME, serial "1", labels */
+static void device_object(writer_t *w, const char *designator, uint64_t name_value,
+                          const iso_ddop_info_t *info, unsigned version)
+{
+    head(w, "DVC", 0);
+    put_text(w, designator);
+    put_text(w, "1.0.0");
+    uint8_t name[8];
+    for (int i = 0; i < 8; i++) {
+        name[i] = (uint8_t)(name_value >> (8 * i));
+    }
+    put(w, name, 8);
+    put_text(w, "1");
+    put(w, info->structure_label, 7);
+    put(w, info->localization_label, 7);
+    if (version >= 4) {
+        put_text(w, ""); /* extended structure label: none */
+    }
+}
+
 int iso_meter_pool(const iso_ddop_params_t *p, uint8_t *buf, size_t cap, iso_ddop_info_t *info)
 {
     memset(info, 0, sizeof *info);
@@ -132,20 +152,7 @@ int iso_meter_pool(const iso_ddop_params_t *p, uint8_t *buf, size_t cap, iso_ddo
 
     memcpy(info->structure_label, p->broken ? "AGF-BRK" : "AGF-ISO", 7);
     memcpy(info->localization_label, "en\0\0\0\0\xff", 7);
-    head(&w, "DVC", DVC);
-    put_text(&w, "agrihil fertilizer meter");
-    put_text(&w, "1.0.0");
-    uint8_t name[8];
-    for (int i = 0; i < 8; i++) {
-        name[i] = (uint8_t)(p->name >> (8 * i));
-    }
-    put(&w, name, 8);
-    put_text(&w, "1");
-    put(&w, info->structure_label, 7);
-    put(&w, info->localization_label, 7);
-    if (p->version >= 4) {
-        put_text(&w, ""); /* extended structure label: none */
-    }
+    device_object(&w, "agrihil fertilizer meter", p->name, info, p->version);
     presentation(&w, MM, "mm", 1.0f, 0);
     presentation(&w, MS, "ms", 1.0f, 0);
     presentation(&w, KG_HA, "kg/ha", 0.01f, 1);
@@ -197,6 +204,50 @@ int iso_meter_pool(const iso_ddop_params_t *p, uint8_t *buf, size_t cap, iso_ddo
     info->boom = 1;
     info->elements = (uint16_t)(2u + p->rows);
     info->sections = p->rows;
+    return 0;
+}
+
+int iso_depth_pool(const iso_depth_ddop_params_t *p, uint8_t *buf, size_t cap,
+                   iso_ddop_info_t *info)
+{
+    memset(info, 0, sizeof *info);
+    if (!(p->width_m > 0.0 && p->width_m <= 30.0)) {
+        return -1;
+    }
+    writer_t w = {buf, cap, 0, false};
+    /* ids in depth_pool()'s call order */
+    enum { MM = 1, MS = 2, DEVICE = 3, LINE = 4, FIRST_LINE_CHILD = 5, LINE_CHILDREN = 9 };
+    memcpy(info->structure_label, "AGD-ISO", 7);
+    memcpy(info->localization_label, "en\0\0\0\0\xff", 7);
+    device_object(&w, "agrihil depth seeder", p->name, info, p->version);
+    presentation(&w, MM, "mm", 1.0f, 0);
+    presentation(&w, MS, "ms", 1.0f, 0);
+    element(&w, DEVICE, DET_DEVICE, "Depth seeder", 0, 0, 0, 0);
+    element(&w, LINE, DET_FUNCTION, "Seed line", 1, DEVICE, FIRST_LINE_CHILD, LINE_CHILDREN);
+    unsigned id = FIRST_LINE_CHILD;
+    property(&w, id++, ISO_DDI_ACTUAL_WORKING_WIDTH, (int32_t)rint(p->width_m * 1000.0),
+             "Working width", MM);
+    property(&w, id++, ISO_DDI_OFFSET_X, p->offset_x_mm, "Offset X", MM);
+    property(&w, id++, ISO_DDI_OFFSET_Y, 0, "Offset Y", MM);
+    property(&w, id++, ISO_DDI_SETPOINT_LATENCY, (int32_t)rint(p->latency_ms),
+             "Setpoint latency", MS);
+    property(&w, id++, ISO_DDI_DEFAULT_SEEDING_DEPTH, (int32_t)rint(p->default_mm),
+             "Default depth", MM);
+    property(&w, id++, ISO_DDI_MINIMUM_SEEDING_DEPTH, (int32_t)rint(p->min_mm),
+             "Minimum depth", MM);
+    property(&w, id++, ISO_DDI_MAXIMUM_SEEDING_DEPTH, (int32_t)rint(p->max_mm),
+             "Maximum depth", MM);
+    process_data(&w, info, id++, 1, ISO_DDI_SETPOINT_SEEDING_DEPTH, true,
+                 ISO_TRIGGER_ON_CHANGE, "Target depth", MM);
+    process_data(&w, info, id++, 1, ISO_DDI_ACTUAL_SEEDING_DEPTH, false,
+                 ISO_TRIGGER_ON_CHANGE | ISO_TRIGGER_TIME, "Actual depth", MM);
+    if (w.overflow) {
+        return -1;
+    }
+    info->size = w.len;
+    info->boom = 1;
+    info->elements = 2;
+    info->sections = 0;
     return 0;
 }
 

@@ -63,7 +63,7 @@ typedef struct {
 
 typedef struct {
     size_t size;                  /* bytes written */
-    uint16_t boom;                /* element number of the boom */
+    uint16_t boom;                /* element number of the boom (depth pool: seed line) */
     uint16_t elements;            /* element numbers are 0 .. elements - 1 */
     unsigned sections;
     iso_dpd_t dpd[ISO_DDOP_MAX_DPD]; /* in pool order (the default set's order) */
@@ -75,6 +75,33 @@ typedef struct {
 /* Write the pool into buf (capacity cap). Returns 0, or -1 when the parameters are out of range
  * (rows, width) or the pool does not fit cap. */
 int iso_meter_pool(const iso_ddop_params_t *p, uint8_t *buf, size_t cap, iso_ddop_info_t *info);
+
+/* The depth seeder's pool (issue 42): the bytes of the Python build's
+ * reference_controllers.sowing_depth.isobus_mode.depth_pool() for the same parameters (the
+ * isobus_depth_ddop ctest compares them on firmware/isobus/data/depth-ddop.txt): the device and
+ * one function element, the seed line, with its working width (DDI 67), offsets (134, 135),
+ * set-point latency (142), default, minimum and maximum seeding depth (58, 59, 60) and two
+ * process data, the set-point seeding depth (56, settable) and the actual one (57, on change
+ * and time interval). The values are rounded as the Python's round() does (half to even). */
+#define ISO_DDI_SETPOINT_SEEDING_DEPTH 56
+#define ISO_DDI_ACTUAL_SEEDING_DEPTH 57
+#define ISO_DDI_DEFAULT_SEEDING_DEPTH 58
+#define ISO_DDI_MINIMUM_SEEDING_DEPTH 59
+#define ISO_DDI_MAXIMUM_SEEDING_DEPTH 60
+
+typedef struct {
+    uint64_t name;        /* the client's NAME, carried by the device object */
+    double width_m;       /* the seed line's working width, (0, 30] m */
+    int32_t offset_x_mm;  /* the seed line behind the device reference point (negative) */
+    double latency_ms;    /* DDI 142 */
+    double default_mm, min_mm, max_mm; /* DDI 58, 59, 60 */
+    unsigned version;     /* 4, or 1-3 (no extended structure label) */
+} iso_depth_ddop_params_t;
+
+/* Write the depth pool into buf; info->boom is the seed line's element number, no sections.
+ * Returns 0, or -1 when the width is out of range or the pool does not fit cap. */
+int iso_depth_pool(const iso_depth_ddop_params_t *p, uint8_t *buf, size_t cap,
+                   iso_ddop_info_t *info);
 
 /* The DPD of (element, ddi), NULL when the pool has none. */
 const iso_dpd_t *iso_ddop_dpd(const iso_ddop_info_t *info, uint16_t element, uint16_t ddi);

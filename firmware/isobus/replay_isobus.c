@@ -2,18 +2,17 @@
  * isobus-*.frames, written by python -m reference_controllers.vectors.isobus from the Python
  * controller) through the C controller, frame by frame, and require the same frames back, byte
  * for byte, in the same order. Exit 0 when every file matches, 1 on the first mismatch (named
- * by file, line and step), 2 on a file that cannot be read. */
+ * by file, line and step), 2 on a file that cannot be read. The controller is replay_ctl.h's:
+ * replay_fert.c (replay_isobus) or replay_depth.c (replay_isobus_depth, the depth vectors of
+ * python -m reference_controllers.vectors.isobus_depth, which also carry 'G' GNSS lines). */
 #include <ctype.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "iso_fert.h"
+#include "replay_ctl.h"
 
 #define LINE_MAX_LEN 512
-#define MAX_EXPECTED (ISO_FERT_MAX_OUT + 8)
-
-static iso_fert_t ctl;
 
 static int hexval(int c)
 {
@@ -75,53 +74,6 @@ static bool same(const hal_can_frame_t *a, const hal_can_frame_t *b)
            memcmp(a->data, b->data, a->len) == 0;
 }
 
-/* #params law=... speed=... ddop=... key=value ... */
-static int configure(const char *path, char *line, iso_fert_config_t *cfg)
-{
-    ppid_law_t law = PPID_LAW_PHYSICAL;
-    char copy[LINE_MAX_LEN];
-    snprintf(copy, sizeof copy, "%s", line + strlen("#params"));
-    char *save = NULL;
-    for (char *tok = strtok_r(copy, " \t\n", &save); tok; tok = strtok_r(NULL, " \t\n", &save)) {
-        if (strncmp(tok, "law=", 4) == 0 && !ppid_law_parse(tok + 4, &law)) {
-            fprintf(stderr, "%s: unknown law '%s'\n", path, tok + 4);
-            return 2;
-        }
-    }
-    iso_fert_config_defaults(cfg, law);
-    param_ref_t refs[ISO_FERT_PARAM_COUNT];
-    size_t n = iso_fert_param_refs(cfg, refs);
-    for (char *tok = strtok_r(line + strlen("#params"), " \t\n", &save); tok;
-         tok = strtok_r(NULL, " \t\n", &save)) {
-        char *value = param_split(tok);
-        if (value == NULL) {
-            fprintf(stderr, "%s: '%s' is not key=value\n", path, tok);
-            return 2;
-        }
-        if (param_name_equal(tok, "law") || param_name_equal(tok, "mode")) {
-            continue;
-        }
-        if (param_name_equal(tok, "speed")) {
-            cfg->speed_wheel = strcmp(value, "wheel") == 0;
-            continue;
-        }
-        if (param_name_equal(tok, "ddop")) {
-            cfg->ddop_broken = strcmp(value, "broken") == 0;
-            continue;
-        }
-        if (param_set(refs, n, tok, value) != PARAM_OK) {
-            fprintf(stderr, "%s: bad parameter %s=%s\n", path, tok, value);
-            return 2;
-        }
-    }
-    const char *why = iso_fert_check(cfg);
-    if (why != NULL) {
-        fprintf(stderr, "%s: %s\n", path, why);
-        return 2;
-    }
-    return 0;
-}
-
 static int replay(const char *path)
 {
     FILE *fp = fopen(path, "r");
@@ -130,10 +82,9 @@ static int replay(const char *path)
         return 2;
     }
     char line[LINE_MAX_LEN];
-    iso_fert_config_t cfg;
     bool configured = false;
     /* what the controller produced for the last input, checked against the '>' lines */
-    static hal_can_frame_t got[ISO_FERT_MAX_OUT];
+    static hal_can_frame_t got[REPLAY_MAX_OUT];
     size_t ngot = 0, next = 0;
     long lineno = 0, inputs = 0, outputs = 0;
     long input_line = 0;
@@ -141,18 +92,17 @@ static int replay(const char *path)
     while (rc == 0 && fgets(line, sizeof line, fp) != NULL) {
         lineno++;
         if (strncmp(line, "#params", 7) == 0) {
-            rc = configure(path, line, &cfg);
-            if (rc == 0 && iso_fert_init(&ctl, &cfg) != 0) {
-                fprintf(stderr, "%s:%ld: the pool cannot be written\n", path, lineno);
-                rc = 2;
-            }
+            rc = replay_configure(path, line + strlen("#params"));
             configured = true;
-            got[0] = iso_fert_bootup();
+            got[0] = replay_bootup();
             ngot = 1;
             next = 0;
             continue;
         }
         if (line[0] == '#' || line[0] == '\n') {
+            continue;
+        }
+        if (configured && replay_other(line) == 0) {
             continue;
         }
         hal_can_frame_t f;
@@ -172,12 +122,12 @@ static int replay(const char *path)
                 frame_text(&got[next], have, sizeof have);
                 fprintf(stderr, "%s:%ld (step %u): the C controller also sent %s after the "
                         "input of line %ld, the vector has no more\n", path, lineno,
-                        (unsigned)ctl.steps, have, input_line);
+                        replay_steps(), have, input_line);
                 rc = 1;
                 break;
             }
-            ngot = iso_fert_on_frame(&ctl, &f);
-            memcpy(got, ctl.out, ngot * sizeof got[0]);
+            ngot = replay_on_frame(&f);
+            memcpy(got, replay_out(), ngot * sizeof got[0]);
             next = 0;
             inputs++;
             input_line = lineno;
@@ -188,14 +138,14 @@ static int replay(const char *path)
         if (next >= ngot) {
             fprintf(stderr, "%s:%ld (step %u): the vector has %s, the C controller sent "
                     "nothing more after the input of line %ld\n", path, lineno,
-                    (unsigned)ctl.steps, want, input_line);
+                    replay_steps(), want, input_line);
             rc = 1;
             break;
         }
         if (!same(&got[next], &f)) {
             frame_text(&got[next], have, sizeof have);
             fprintf(stderr, "%s:%ld (step %u): vector %s, C controller %s\n", path, lineno,
-                    (unsigned)ctl.steps, want, have);
+                    replay_steps(), want, have);
             rc = 1;
             break;
         }
@@ -214,7 +164,7 @@ static int replay(const char *path)
     fclose(fp);
     if (rc == 0) {
         printf("%s: %ld frames in, %ld frames out, %u steps: identical\n", path, inputs,
-               outputs, (unsigned)ctl.steps);
+               outputs, replay_steps());
     }
     return rc;
 }

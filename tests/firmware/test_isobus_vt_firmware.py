@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import fcntl
 import importlib.util
+import json
 import math
 import subprocess
 import sys
@@ -342,3 +343,37 @@ def test_on_the_rig_with_its_vt_the_c_firmware_gives_the_pythons_bus_log(
     assert first is None and len(c) == len(python), (
         f"first difference at bus.log line {first}: C {c[first:first + 2] if first else c[-2:]},"
         f" Python {python[first:first + 2] if first else python[-2:]}")
+
+
+@pytest.mark.slow
+@pytest.mark.realtime
+def test_free_running_against_hil_isobus_serve_its_pool_goes_active_on_the_vt(
+        isobus_bin: Path, tmp_path: Path) -> None:
+    """The program free-running (its own 100 ms tick) against ``hil isobus serve --vt`` in real
+    time (~15 s): the VT has its pool active and stored (1,047 bytes, AGF-VT1), and the program
+    says its VT client is connected when it stops."""
+    out = tmp_path / "serve"
+    with SoftwareBus(port=0) as sb:
+        firmware = subprocess.Popen([str(isobus_bin), "--bus", sb.spec(), "--period-ms", "100",
+                                     "--param", "vt=yes"], stdin=subprocess.DEVNULL,
+                                    stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        try:
+            fields = ROOT / "plant_emulators" / "fertilizer" / "fields"
+            serve = subprocess.run(
+                [str(Path(sys.executable).with_name("hil")), "isobus", "serve", "--bus",
+                 sb.spec(), "--path", str(fields / "field-rect.geojson"), "--map",
+                 str(fields / "rates-3zones.geojson"), "--drive-after", "0.5", "--duration",
+                 "15", "--out", str(out), "--quiet", "--vt"],
+                capture_output=True, text=True, timeout=120)
+        finally:
+            firmware.terminate()
+            _, err = firmware.communicate(timeout=10)
+    assert serve.returncode == 0, serve.stderr[-2000:]
+    assert firmware.returncode == 0, err.decode()
+    assert "VT client connected, 1 connection(s), 1 upload(s)" in err.decode(), err.decode()
+    record = json.loads((out / "vt" / "vt.json").read_text())
+    (ws,) = record["working_sets"]
+    assert ws["address"] == 0x81 and ws["pool_bytes"] == 1047 and ws["connected_at_end"]
+    assert ws["version_label"] == "AGF-VT1"
+    kinds = [e["kind"] for e in record["events"]]
+    assert kinds.index("activated") < kinds.index("stored"), kinds

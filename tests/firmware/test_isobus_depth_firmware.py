@@ -1,0 +1,180 @@
+"""agrihil-sowing-depth-isobus-fw, the C build of the depth controller's ISOBUS mode (issue 42).
+
+* the depth vectors (``firmware/isobus/data/depth-isobus-*.frames``) are what the Python
+  controller sends today (recorded again here and compared line by line), and the C build
+  sends their frames byte for byte (``replay_isobus_depth``, ctest's ``isobus_depth_vectors``);
+  the depth DDOP's bytes likewise (``test_iso_ddop_depth``);
+* the replay fails, naming the line, on a vector with one byte changed;
+* on the rig (slow): a depth ``[tractor]`` run in lockstep gives the same DUT frames from the
+  firmware on the software bus as from the Python mode in process, and the firmware qualifies
+  on the depth rig's isobus suite.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from reference_controllers.vectors.isobus_depth import (
+    DATA_DIR,
+    DDOP_FILE,
+    SUFFIX,
+    ddop_lines,
+    record,
+    scenarios,
+)
+
+ROOT = Path(__file__).resolve().parents[2]
+HIL = str(Path(sys.executable).with_name("hil"))
+APP = "agrihil-sowing-depth-isobus-fw"
+PROFILE = "sowing-depth-fuzzy-pid-isobus-firmware.toml"
+TARGETS = (APP, "replay_isobus_depth", "test_iso_ddop_depth")
+#: the tractor drive takes ~3 s of CPU, a scripted run ~0.6 s: one scripted run in the default set
+SLOW_SCENARIOS = {"depth-isobus-drive", "depth-isobus-must-fail", "depth-isobus-fixed"}
+
+
+@pytest.fixture(scope="module")
+def depth_isobus_bin(firmware_bin: Path) -> Path:
+    """The program, the replay and the DDOP check, built in the firmware tests' cached build
+    directory."""
+    with (firmware_bin.parent / f"{firmware_bin.name}.lock").open("w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not all((firmware_bin / t).exists() for t in TARGETS):
+            done = subprocess.run(["nice", "cmake", "--build", str(firmware_bin), "-j2",
+                                   "--target", *TARGETS], capture_output=True, text=True,
+                                  timeout=300)
+            assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    return firmware_bin / APP
+
+
+@pytest.mark.parametrize("scenario", [
+    pytest.param(s, id=s.name, marks=[pytest.mark.slow] if s.name in SLOW_SCENARIOS else [])
+    for s in scenarios()])
+def test_the_committed_depth_vectors_are_what_the_python_controller_sends(scenario) -> None:
+    path = DATA_DIR / f"{scenario.name}{SUFFIX}"
+    committed = path.read_text().splitlines()
+    fresh = record(scenario)
+    first = next((i for i, (a, b) in enumerate(zip(committed, fresh, strict=False)) if a != b),
+                 min(len(committed), len(fresh)))
+    assert committed == fresh, (
+        f"{path.name} is stale at line {first + 1}: committed {committed[first:first + 1]}, "
+        f"the Python controller now {fresh[first:first + 1]}; rewrite it with "
+        f"python -m reference_controllers.vectors.isobus_depth and run ctest")
+
+
+def test_the_committed_depth_ddop_is_the_python_pool() -> None:
+    assert (DATA_DIR / DDOP_FILE).read_text().splitlines() == ddop_lines()
+
+
+def test_the_c_build_sends_the_depth_vectors_frames_byte_for_byte(
+        depth_isobus_bin: Path) -> None:
+    vectors = sorted(DATA_DIR.glob(f"depth-isobus-*{SUFFIX}"))
+    assert {p.stem for p in vectors} == {s.name for s in scenarios()}
+    done = subprocess.run([str(depth_isobus_bin.with_name("replay_isobus_depth")),
+                           *map(str, vectors)], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert done.stdout.count(": identical") == len(vectors), done.stdout
+    done = subprocess.run([str(depth_isobus_bin.with_name("test_iso_ddop_depth")),
+                           str(DATA_DIR / DDOP_FILE)], capture_output=True, text=True,
+                          timeout=60)
+    pools = len(ddop_lines()) - 2          # two comment lines, then a pool a line
+    assert done.returncode == 0 and f"{pools} pools identical" in done.stdout, \
+        done.stdout + done.stderr
+
+
+def test_the_replay_names_the_first_frame_the_c_build_does_not_send(
+        depth_isobus_bin: Path, tmp_path: Path) -> None:
+    """A vector whose reported actual depth (DDI 57) is one off fails at that line."""
+    lines = (DATA_DIR / "depth-isobus-scripted-tc.frames").read_text().splitlines()
+    # the first DDI 57 value (process data value command 0x3, element 1) the controller sent
+    at = next(i for i, line in enumerate(lines) if line.startswith("> ")
+              and line.split("#")[1].startswith("13003900"))
+    frame = lines[at]
+    last = int(frame[-2:], 16)
+    lines[at] = f"{frame[:-2]}{(last + 1) % 256:02X}"
+    bad = tmp_path / "depth-isobus-changed.frames"
+    bad.write_text("\n".join(lines) + "\n")
+    done = subprocess.run([str(depth_isobus_bin.with_name("replay_isobus_depth")), str(bad)],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 1, done.stdout + done.stderr
+    assert f"{bad}:{at + 1} " in done.stderr, done.stderr
+
+
+# ------------------------------------------------------------------ on the rig
+SCENARIO = """
+name = "isobus-depth-lockstep"
+description = "the depth field run's first 30 s: connection, the drive off into the first pass"
+rig = "sowing_depth"
+duration_s = 30.0
+seed = 42
+tags = ["isobus"]
+
+[tractor]
+field = "{root}/plant_emulators/fertilizer/fields/field-rect.geojson"
+prescription = "{root}/plant_emulators/sowing_depth/fields/depths-3zones.geojson"
+drive_after_s = 8.0
+"""
+
+
+def _dut_frames(bus_log: Path) -> list[tuple[str, str]]:
+    """(time, frame) of every frame the rig received from the DUT (bus.log's 'R' lines)."""
+    out = []
+    for line in bus_log.read_text().splitlines():
+        parts = line.split()
+        if len(parts) == 4 and parts[3] == "R":
+            out.append((parts[0], parts[2]))
+    return out
+
+
+@pytest.mark.slow
+def test_on_the_rig_in_lockstep_it_sends_what_the_python_mode_sends(
+        depth_isobus_bin: Path, tmp_path: Path) -> None:
+    """The first 30 s of the depth field run (connection, the pool transfer, the map's depth,
+    the drive) with the C firmware on the software bus and the Python mode in process: every
+    frame the DUT sends, at the same run time, is the same."""
+    scenario = tmp_path / "isobus-depth-lockstep.toml"
+    scenario.write_text(SCENARIO.format(root=ROOT))
+    runs = {}
+    for name, profile, bus in (
+            ("c", PROFILE, "softbus"),
+            ("python", "sowing-depth-fuzzy-pid-isobus-daemon.toml", "inline")):
+        out = tmp_path / name
+        done = subprocess.run([HIL, "run", "--dut", str(ROOT / "dut_profiles" / profile),
+                               "--scenario", str(scenario), "--bus", bus, "--out", str(out)],
+                              capture_output=True, text=True, timeout=900, cwd=ROOT)
+        assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+        runs[name] = _dut_frames(out / "bus.log")
+    c, python = runs["c"], runs["python"]
+    assert len(c) > 3000                           # ~4,000: a status every 10th step
+    first = next((i for i, (a, b) in enumerate(zip(c, python, strict=False)) if a != b), None)
+    assert first is None and len(c) == len(python), (
+        f"first difference at DUT frame {first}: C {c[first:first + 3] if first else c[-3:]}, "
+        f"Python {python[first:first + 3] if first else python[-3:]}")
+    # the TC's depth reached it: DDI 57 reports go out from its address (0x82)
+    assert any(f.startswith("0CCBF782#") or f.startswith("14CBF782#") for _, f in c), c[:50]
+
+
+@pytest.mark.slow
+def test_it_qualifies_on_the_depth_rig_isobus_suite(depth_isobus_bin: Path,
+                                                     tmp_path: Path) -> None:
+    """``hil qualify`` of the firmware profile (the isobus suite: [wiring] isobus = true) on the
+    software bus: it passes, every zone of the field run included (minutes: slow)."""
+    out = tmp_path / "q"
+    proc = subprocess.run([sys.executable, "-m", "hil", "qualify",
+                           str(ROOT / "dut_profiles" / PROFILE), "--bus", "softbus",
+                           "--out", str(out), "--quiet"], cwd=ROOT, capture_output=True,
+                          text=True, timeout=3600)
+    record_path = out / "record.json"
+    assert record_path.exists(), proc.stdout[-2000:] + proc.stderr[-2000:]
+    record = json.loads(record_path.read_text())
+    failed = [(m["name"], m["conditions"], m["value"]) for m in record["measurements"]
+              if m["outcome"] in ("fail", "error")]
+    assert proc.returncode == 0 and record["verdict"] == "pass", failed
+    zones = {m["conditions"]["zone"]: m["outcome"] for m in record["measurements"]
+             if m["name"] == "isobus.depth.zone_error"}
+    assert zones == {"30 mm": "pass", "35 mm": "pass", "40 mm": "pass"}
