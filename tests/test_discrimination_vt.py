@@ -4,7 +4,10 @@ must-fail profile (``dut_profiles/must_fail/fertilizer-isobus-vt-*.toml``, the r
 ``vt_defect``) fails them on the measurement its header names.
 
 Each case is ``hil qualify PROFILE --bus inline -k <the VT tests that can see it>`` in a
-subprocess, judged from its ``record.json``, as tests/test_discrimination_isobus.py does.
+subprocess, judged from its ``record.json``, as tests/test_discrimination_isobus.py does. A
+qualification on a VT scenario takes tens of seconds, so all of them are ``slow``; the default
+run checks the profiles here and the VT in the field run in process
+(tests/hil/isobus/vt/test_field_vt.py).
 """
 
 from __future__ import annotations
@@ -71,10 +74,13 @@ def test_every_vt_must_fail_profile_is_checked_here_as_its_header_says() -> None
         assert must_fail_claims(path) == {EXPECTED[path.stem][1]}, path.name
 
 
+@pytest.mark.slow
 def test_the_vt_reference_qualifies_on_the_operator_run(tmp_path: Path,
                                                         hil_forked: HilForkServer) -> None:
-    """The default run's case: the VT tests of the one operator run (connection, nothing
-    before Master, Master off, the alarm), and its VT-client conformance."""
+    """The VT tests of the one operator run (connection, nothing before Master, Master off,
+    the alarm), and its VT-client conformance: ~25 s alone, 69 s on the loaded host, so slow;
+    the default run's form is tests/hil/isobus/vt/test_field_vt.py (the same reference, VT
+    and operator in process, ~1 s)."""
     proc, record = _qualify(hil_forked, REFERENCE, tmp_path / "q",
                             f"{VT_TESTS} and not restart and not calibration")
     assert proc.returncode == 0 and record["verdict"] == "pass", proc.stdout + proc.stderr
