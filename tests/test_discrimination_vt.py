@@ -78,7 +78,7 @@ def test_every_vt_must_fail_profile_is_checked_here_as_its_header_says() -> None
 def test_the_vt_reference_qualifies_on_the_operator_run(tmp_path: Path,
                                                         hil_forked: HilForkServer) -> None:
     """The VT tests of the one operator run (connection, nothing before Master, Master off,
-    the alarm), and its VT-client conformance: ~25 s alone, 69 s on the loaded host, so slow;
+    the alarm), and its VT-client conformance: 69 s on the loaded host, so slow;
     the default run's form is tests/hil/isobus/vt/test_field_vt.py (the same reference, VT
     and operator in process, ~1 s)."""
     proc, record = _qualify(hil_forked, REFERENCE, tmp_path / "q",
