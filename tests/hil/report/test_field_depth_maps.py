@@ -5,7 +5,8 @@ A small synthetic depth field run stands in for the rig's (a real one takes minu
 seed line of 4 rows drives one pass and an overlap pass over a two-zone map (30 mm south, 40 mm
 north); each row sows the zone's depth under its seed tube plus its own offset (row r:
 ``ROW_OFFSET_MM * r``), so the map's colours and the zone table have a known answer. Its
-traces, truth cells and record have the depth rig's names."""
+traces, truth cells and record have the depth rig's names. The drawing and page checks take a
+few seconds (a figure, the report's runs): ``slow``; the default run keeps the map's numbers."""
 
 from __future__ import annotations
 
@@ -151,6 +152,7 @@ def test_the_sown_depth_is_the_truth_per_zone_and_row(depth_run: Path) -> None:
     assert checked > 0.6 * len(data["features"])
 
 
+@pytest.mark.slow
 def test_the_maps_share_the_depth_colours(depth_run: Path) -> None:
     from PIL import Image as PilImage
 
@@ -175,6 +177,7 @@ def test_the_maps_share_the_depth_colours(depth_run: Path) -> None:
                     assert nearest == depth, (ax.get_title(loc="left"), y)
 
 
+@pytest.mark.slow
 def test_the_section_names_depths_and_the_zone_error(make_qual_dir: Callable[..., Path],
                                                     depth_run: Path) -> None:
     record = synthetic_record()
