@@ -44,8 +44,15 @@ size_t iso_fert_param_refs(iso_fert_config_t *cfg, param_ref_t refs[ISO_FERT_PAR
     return n;
 }
 
-static const char *const VT_DEFECTS[] = {"", "ignores-master", "no-alarm", "bad-pool",
-                                          "no-reconnect", "meters-without-vt"};
+static const char *const VT_DEFECTS[] = {"",
+                                          "ignores-master",
+                                          "no-alarm",
+                                          "bad-pool",
+                                          "no-reconnect",
+                                          "meters-without-vt",
+                                          "no-store",
+                                          "slow-maintenance",
+                                          "ignores-calibration"};
 
 int iso_fert_vt_param(iso_fert_config_t *cfg, const char *key, const char *value,
                       const char **why)
@@ -66,7 +73,8 @@ int iso_fert_vt_param(iso_fert_config_t *cfg, const char *key, const char *value
             }
         }
         *why = "parameter 'vt_defect' must be one of '', 'ignores-master', 'no-alarm', "
-               "'bad-pool', 'no-reconnect', 'meters-without-vt'";
+               "'bad-pool', 'no-reconnect', 'meters-without-vt', 'no-store', "
+               "'slow-maintenance', 'ignores-calibration'";
         return -1;
     }
     return 0;
@@ -359,6 +367,9 @@ static void on_number(void *ctx, uint16_t object_id, uint32_t value)
     }
     c->cal_grams = grams;
     c->cal_rpm = rpm;
+    if (c->cfg.vt_defect == ISO_VT_DEFECT_IGNORES_CALIBRATION) {
+        return; /* shown on the VT, not used */
+    }
     ppid_params_t *p = &c->adapter.cfg.core;
     double coeff = fert_ff_coeff_from_test(grams, rpm, p->ff_exponent, p->ff_linear_below_rpm);
     if (coeff > 0.0) {
@@ -478,10 +489,13 @@ int iso_fert_init(iso_fert_t *c, const iso_fert_config_t *cfg)
         vtc_implement_t hooks = {c, on_key, on_number};
         if (iso_vt_pool(FERT_ROWS, cfg->vt_defect == ISO_VT_DEFECT_BAD_POOL, vt_pool,
                         sizeof vt_pool, &size) != 0 ||
-            vtc_init(&c->vt, &c->net, vt_pool, size, ISO_POOL_VERSION_LABEL, hooks) != 0) {
+            vtc_init(&c->vt, &c->net, vt_pool, size,
+                     cfg->vt_defect == ISO_VT_DEFECT_NO_STORE ? NULL : ISO_POOL_VERSION_LABEL,
+                     hooks) != 0) {
             return -1;
         }
         c->cal_rpm = 21.0;
+        c->maintenance_due = INFINITY;
     }
     return 0;
 }
@@ -533,6 +547,14 @@ size_t iso_fert_step(iso_fert_t *c)
         }
     }
     c->steps++;
+    if (c->cfg.vt_defect == ISO_VT_DEFECT_SLOW_MAINTENANCE) {
+        /* each maintenance message's next one a second later than due (every 2 s) */
+        double due = c->vt.next_maintenance_s;
+        if (isfinite(due) && due != c->maintenance_due) {
+            c->vt.next_maintenance_s = due + 1.0;
+            c->maintenance_due = c->vt.next_maintenance_s;
+        }
+    }
     if (c->cfg.vt && vtc_connected(&c->vt)) {
         /* what the operator sees: queued now, sent from the next step on */
         watch_rows(c);

@@ -49,7 +49,10 @@ typedef enum {
     ISO_VT_DEFECT_NO_ALARM,          /* never raises the lost row's alarm */
     ISO_VT_DEFECT_BAD_POOL,          /* a pool the VT refuses (a font that is not there) */
     ISO_VT_DEFECT_NO_RECONNECT,      /* never notices the VT went away */
-    ISO_VT_DEFECT_METERS_WITHOUT_VT  /* meters without its pool active and Master on */
+    ISO_VT_DEFECT_METERS_WITHOUT_VT, /* meters without its pool active and Master on */
+    ISO_VT_DEFECT_NO_STORE,          /* never stores its pool (uploads it after a VT restart) */
+    ISO_VT_DEFECT_SLOW_MAINTENANCE,  /* working set maintenance every 2 s, not every second */
+    ISO_VT_DEFECT_IGNORES_CALIBRATION /* shows the calibration, meters on its own map */
 } iso_vt_defect_t;
 
 #define ISO_FERT_ALARM_AFTER_S 1.0   /* a row's flow lost this long while metering: alarm */
@@ -96,6 +99,7 @@ typedef struct {
     bool lost[FERT_ROWS];
     double lost_since[FERT_ROWS];
     bool alarmed[FERT_ROWS];
+    double maintenance_due; /* slow-maintenance: the maintenance time it last put off */
 } iso_fert_t;
 
 void iso_fert_config_defaults(iso_fert_config_t *cfg, ppid_law_t law);

@@ -77,7 +77,8 @@ if(BUILD_TESTING)
   # (python tests/firmware/isobus_vt_vectors.py) and its pool's bytes
   set(ISOBUS_VT_VECTORS)
   foreach(v operator defect-ignores-master defect-no-alarm defect-bad-pool defect-no-reconnect
-          defect-meters-without-vt cross-row odd concurrent no-memory)
+          defect-meters-without-vt defect-no-store defect-slow-maintenance
+          defect-ignores-calibration cross-row odd concurrent no-memory)
     list(APPEND ISOBUS_VT_VECTORS ${ISOBUS_DIR}/data/vt-${v}.frames)
   endforeach()
   add_test(NAME isobus_vt_vectors COMMAND replay_isobus ${ISOBUS_VT_VECTORS})

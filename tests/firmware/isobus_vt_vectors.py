@@ -62,7 +62,8 @@ FIELDS = ROOT / "plant_emulators" / "fertilizer" / "fields"
 SYNC = can.Message(arbitration_id=0x080, is_extended_id=False, data=b"")
 SUFFIX = ".frames"
 POOL_FILE = "vt-pool.txt"
-DEFECTS = ("ignores-master", "no-alarm", "bad-pool", "no-reconnect", "meters-without-vt")
+DEFECTS = ("ignores-master", "no-alarm", "bad-pool", "no-reconnect", "meters-without-vt",
+           "no-store", "slow-maintenance", "ignores-calibration")
 DB = FertilizerDatabase()
 
 
