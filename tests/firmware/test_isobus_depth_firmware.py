@@ -5,6 +5,7 @@
   sends their frames byte for byte (``replay_isobus_depth``, ctest's ``isobus_depth_vectors``);
   the depth DDOP's bytes likewise (``test_iso_ddop_depth``);
 * the replay fails, naming the line, on a vector with one byte changed;
+* the program on the software bus claims its address and sends its status from it;
 * on the rig (slow): a depth ``[tractor]`` run in lockstep gives the same DUT frames from the
   firmware on the software bus as from the Python mode in process, and the firmware qualifies
   on the depth rig's isobus suite.
@@ -14,12 +15,15 @@ from __future__ import annotations
 
 import fcntl
 import json
+import os
 import subprocess
 import sys
+import tty
 from pathlib import Path
 
 import pytest
 
+from hil.softbus import SoftwareBus
 from reference_controllers.vectors.isobus_depth import (
     DATA_DIR,
     DDOP_FILE,
@@ -103,6 +107,40 @@ def test_the_replay_names_the_first_frame_the_c_build_does_not_send(
                           capture_output=True, text=True, timeout=60)
     assert done.returncode == 1, done.stdout + done.stderr
     assert f"{bad}:{at + 1} " in done.stderr, done.stderr
+
+
+CLAIM = 0x18EEFF82            # address claimed (PGN 0xEE00) from 0x82, to everyone
+STATUS_FROM_CLAIM = 0x18FF3082  # DepthControllerStatus from the claimed address
+STATUS_FROM_DBC = 0x18FF3080    # ... from the rig DBC's 0x80: never under ISOBUS
+RPDO2 = 0x302
+
+
+def test_the_program_in_lockstep_claims_its_address_and_sends_its_status_from_it(
+        depth_isobus_bin: Path, start_app) -> None:
+    """The program itself (its loop, its parameters, its GNSS port) on the software bus: the
+    first step claims 0x82 with its NAME (planters/seeders, identity 0x0D42), the status goes
+    out from 0x82 once the claim settled (250 ms), never from the DBC's 0x80, and SIGTERM
+    stops it with 0."""
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    try:
+        with SoftwareBus(port=0) as sb:
+            app = start_app(APP, sb.spec(), "--sync", "--param", "kp0=3",
+                            env={"AGRIHIL_GNSS_PORT": os.ttyname(slave)}, bootup_id=0x701)
+            first = app.sync({CLAIM, RPDO2})
+            name = int.from_bytes(bytes(first[CLAIM].data), "little")
+            assert name == 0x0D42 | 128 << 40 | 4 << 49 | 2 << 60 | 1 << 63
+            seen: set[int] = set()
+            for _ in range(30):
+                seen |= set(app.sync({RPDO2}))
+            app.drain()
+            code, _ = app.terminate()
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert STATUS_FROM_CLAIM in seen and STATUS_FROM_DBC not in seen, sorted(seen)
+    assert code == 0, app.stderr()
+    assert "GNSS on /dev/" in app.stderr() and "stopped after 31 steps" in app.stderr()
 
 
 # ------------------------------------------------------------------ on the rig
