@@ -11,12 +11,14 @@ The profile's ``[fmu]`` table::
     [fmu.variables]                 # signal level: FMU variable = rig quantity (or quantity[row])
     "FlowRow1" = "row_flow[1]"
 
-The FMU runs in the rig's process (no process boundary): on the inline bus in lockstep, or in a
-thread on the software bus; :class:`FmuDut` is :class:`~hil.dut.inprocess.InProcessDut` with
-the FMU's controller (:mod:`hil.fmi.bus_node`, :mod:`hil.fmi.signal_node`). An FMU that fails
-(an error status, an operation the rig's bus cannot carry) stops the run as a DUT that raised
-does; one that crashes the process is that run's (or campaign sample's) error, as a dying
-DUT is.
+:class:`FmuDut` is :class:`~hil.dut.inprocess.InProcessDut` with the FMU's controller
+(:mod:`hil.fmi.bus_node`, :mod:`hil.fmi.signal_node`): on the inline bus in lockstep, or in a
+thread on the software bus. With ``[fmu] isolation = "process"`` (the default) that controller
+runs in the FMU host, a process of its own stepped in lockstep (:mod:`hil.fmi.host`): an FMU
+that crashes, exits or hangs there fails the run as a dying DUT process does, named, with the
+run's record and traces written. With ``isolation = "none"`` it runs in the rig's process.
+An FMU that fails (an error status, an operation the rig's bus cannot carry) stops the run as
+a DUT that raised does, either way.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from hil.dut.base import DutStopped
 from hil.dut.fmu_check import Problem, signal_bindings
 from hil.dut.fmu_check import check_fmu as _check_fmu
 from hil.dut.fmu_check import fmu_problems as _fmu_problems
@@ -77,9 +80,12 @@ def make_controller(profile: DutProfile, path: Path) -> Controller:
     if section.level == "bus":
         terminal = next(t for t in fmu.can_terminals
                         if t.name == (section.terminal or fmu.can_terminals[0].name))
+        from hil.rig.registry import load_rig
+
         return BusFmuController(fmu, terminal, period_s=period_s,
                                 bus_notifications=section.bus_notifications,
-                                parameters=dict(profile.parameters), name=profile.name)
+                                parameters=dict(profile.parameters), name=profile.name,
+                                bitrate_bps=int(load_rig(profile.dut.rig).bitrate_bps))
     contract = rig_contract(profile.dut.rig, profile.rig_config, str(profile.path or ""))
     inputs, outputs = signal_bindings(profile, fmu, contract)
     return SignalFmuController(
@@ -90,7 +96,7 @@ def make_controller(profile: DutProfile, path: Path) -> Controller:
 
 
 class FmuDut(InProcessDut):
-    """An FMU controller in the rig's process; its instance is freed on stop and restart."""
+    """An FMU controller, in its host or in the rig's process; freed on stop and restart."""
 
     def __init__(self, controller: Controller, factory: Any, *, fmu_file: Path,
                  level: str) -> None:
@@ -103,6 +109,13 @@ class FmuDut(InProcessDut):
         if close is not None:
             close()
 
+    def _stopped(self, exc: BaseException) -> DutStopped:
+        """A host that died or hung said so itself (a :class:`DutStopped`): kept as it is."""
+        if isinstance(exc, DutStopped):
+            self._failure = exc
+            return DutStopped(exc.what, detail=exc.detail, at_s=exc.at_s)
+        return super()._stopped(exc)
+
     def restart(self, bus_spec: str, env: dict[str, str] | None = None) -> dict[str, Any]:
         """A power cycle: the FMU instance is freed and a new one instantiated."""
         if self._inline:
@@ -114,9 +127,12 @@ class FmuDut(InProcessDut):
         result = super().stop(timeout)
         record = getattr(self.controller, "record", None)
         extra: dict[str, Any] = {"fmu": str(self.fmu_file), "fmu_level": self.level}
-        if record is not None:
-            extra["lsbus"] = record()
+        node = record() if record is not None else None
+        if node is not None:
+            extra["lsbus"] = node
         self._close()
+        host = getattr(self.controller, "host_record", None)
+        extra["fmu_isolation"] = host() if host is not None else {"isolation": "none"}
         return {**result, **extra}
 
     def identity(self) -> dict[str, Any]:
@@ -145,10 +161,18 @@ def make_fmu_dut(profile: DutProfile) -> tuple[FmuDut, dict[str, Any]]:
     path = fmu_path(profile, Path(str(build["build_dir"])) if build else None)
     check_fmu(profile, path)
 
-    def factory() -> Controller:
-        return make_controller(profile, path)
+    section = profile.fmu
+    assert section is not None
 
-    assert profile.fmu is not None
+    def factory() -> Controller:
+        controller = make_controller(profile, path)
+        if section.isolation == "none":
+            return controller
+        from hil.fmi.host import HostedController
+
+        return HostedController(controller, fmu=path, timeout_s=section.host_timeout_s,
+                                name=profile.name)
+
     dut = FmuDut(factory(), factory, fmu_file=path, level=profile.fmu.level)
     dut.name = profile.name
     return dut, build

@@ -13,6 +13,9 @@ from typing import Literal
 __all__ = ["FmuSection", "Level"]
 
 Level = Literal["bus", "signal"]
+Isolation = Literal["process", "none"]
+#: the host's answer time-out: more than a step takes anywhere, less than a scenario
+HOST_TIMEOUT_RANGE_S = (0.0, 3600.0)
 
 
 @dataclass(frozen=True)
@@ -37,6 +40,15 @@ class FmuSection:
         fmpy's validation problems the profile accepts, each by the start of its text (an
         FMU from elsewhere whose description fmpy judges stricter than its tools did); every
         other problem refuses the FMU. Say why in a comment beside it.
+    isolation : {"process", "none"}, optional
+        ``process`` (the default): the FMU runs in a host process of its own, stepped in
+        lockstep, so that a crash, an exit or a hang in its code fails the run as a dying
+        DUT does; ``none``: in the rig's process (a crash there ends the rig's process and
+        the run's traces with it).
+    host_timeout_s : float, optional
+        ``isolation = "process"``: how long the FMU's host may take to answer one frame (its
+        ``doStep`` and event handling) before the FMU counts as hung and its host is killed
+        (0 < s <= 3600, default 10).
     """
 
     path: str
@@ -45,8 +57,16 @@ class FmuSection:
     bus_notifications: bool = True
     variables: dict[str, str] = field(default_factory=dict)
     waive_validation: tuple[str, ...] = ()
+    isolation: Isolation = "process"
+    host_timeout_s: float = 10.0
 
     def __post_init__(self) -> None:
+        low, high = HOST_TIMEOUT_RANGE_S
+        if isinstance(self.host_timeout_s, bool) or not low < self.host_timeout_s <= high:
+            from hil.errors import ConfigError
+
+            raise ConfigError(f"{self.host_timeout_s!r} is not a time-out: give seconds "
+                              f"> {low:g} and <= {high:g}", key="host_timeout_s")
         if not self.path:
             raise ValueError("path must name the FMU")
         if self.level == "bus" and self.variables:

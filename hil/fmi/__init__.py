@@ -6,7 +6,8 @@
 * :mod:`hil.fmi.canbus`: the bus simulation a CAN node FMU sees (confirm, arbitration, errors);
 * :mod:`hil.fmi.bus_node`, :mod:`hil.fmi.signal_node`: bus-level and signal-level FMUs as
   controllers (frames in, frames out);
-* :mod:`hil.fmi.parameters`: a profile's parameters as the FMU's.
+* :mod:`hil.fmi.parameters`: a profile's parameters as the FMU's;
+* :mod:`hil.fmi.host`: the FMU host, a process of its own that runs the FMU for the rig.
 
 The DUT profile side is :mod:`hil.dut.fmu`.
 """

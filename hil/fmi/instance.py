@@ -14,7 +14,7 @@ import contextlib
 import shutil
 import tempfile
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from hil.errors import HilError
@@ -30,6 +30,9 @@ _FMI3_TYPES = {"Float64": "Float64", "Float32": "Float32", "Int8": "Int8", "UInt
 _FMI2_TYPES = {"Real": "Real", "Integer": "Integer", "Boolean": "Boolean",
                "Enumeration": "Integer"}
 LOG_LINES = 20
+#: also given each line the FMU logs (the FMU host writes them to its standard error, so that
+#: what an FMU said before it crashed its process is not lost with it)
+log_sink: Callable[[str], Any] | None = None
 
 
 class FmuCallError(HilError, RuntimeError):
@@ -117,7 +120,10 @@ class FmuInstance:
     # --- life cycle ----------------------------------------------------------------------
     def _logger3(self, env: Any, status: int, category: Any, message: Any) -> None:
         text = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
-        self.log.append(f"[{_status(status)}] {text}")
+        line = f"[{_status(status)}] {text}"
+        self.log.append(line)
+        if log_sink is not None:
+            log_sink(line)
 
     def _instantiate(self, name: str, event_mode: bool) -> Any:
         from fmpy import extract
