@@ -50,11 +50,13 @@ class BusFmuController(Controller):
         Values for the FMU's parameters by variable name.
     name : str, optional
         The instance's name.
+    bitrate_bps : int, optional
+        The rig's bus bit rate (the bus-off recovery counts its bit times).
     """
 
     def __init__(self, fmu: FmuFile, terminal: CanTerminal, *, period_s: float,
                  bus_notifications: bool, parameters: dict[str, Any] | None = None,
-                 name: str = "fmu") -> None:
+                 name: str = "fmu", bitrate_bps: int = 250_000) -> None:
         self.fmu = fmu
         self.terminal = terminal
         self.period_s = period_s
@@ -63,7 +65,8 @@ class BusFmuController(Controller):
         self.name = name
         self.inst: FmuInstance | None = None
         self.env_parameters: dict[str, str] = {}
-        self.bus = CanNodeBus(terminal.name, bus_notifications)
+        self.bitrate_bps = bitrate_bps
+        self.bus = CanNodeBus(terminal.name, bus_notifications, bitrate_bps)
         self.syncs = 0
         self.bus_time = 0.0
         self.next_tx_tick: float | None = None
@@ -85,7 +88,7 @@ class BusFmuController(Controller):
             inst.set_boolean_vr(self.fmu.bus_notifications_vr, self.notifications)
         apply_parameters(inst, self.fmu, {**self.env_parameters, **self.parameters})
         inst.initialize(0.0)
-        self.bus = CanNodeBus(self.terminal.name, self.notifications)
+        self.bus = CanNodeBus(self.terminal.name, self.notifications, self.bitrate_bps)
         self.bus.start()
         self.syncs = 0
         self.bus_time = 0.0
@@ -127,7 +130,7 @@ class BusFmuController(Controller):
         if sync:
             self.bus_time = self.syncs * self.period_s
             self.syncs += 1
-            self.bus.time_advanced()
+            self.bus.time_advanced(self.bus_time)
         out = self._advance(self.bus_time, msg)
         self.bus.from_bus(msg)
         out += self._deliver()

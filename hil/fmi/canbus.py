@@ -19,11 +19,20 @@ answer for one CAN terminal, on a **classic CAN** bus (the rig's):
   fault rules put one there) is a transmit error of the node's oldest unconfirmed frame when
   it has one (``isSender`` 1, transmit error counter +8), else a receive error (``isSender``
   0, receive error counter +1), as ISO 11898-1 counts them; a confirmed frame takes 1 off the
-  transmit counter.
+  transmit counter. An error frame of the SocketCAN class *bus off* (``CAN_ERR_BUSOFF``,
+  0x040 in its id: the software bus's ``busoff`` rule sends one) while the node has a frame
+  on the bus says that frame's sender went bus off: the node's transmit counter goes past 255
+  at once.
 * **status** (0x41): error active at start; error passive when a counter passes 127; bus off
-  when the transmit counter passes 255. A node that is bus off sends and hears nothing more
-  (until the DUT is restarted; the recovery sequence of 128 x 11 recessive bits is not
-  modelled).
+  when the transmit counter passes 255. A node that is bus off sends and hears nothing.
+* **bus-off recovery**: ISO 11898-1 lets a node that is bus off become error active again,
+  both counters 0, once it has monitored 128 occurrences of 11 consecutive recessive bits.
+  Counted on the rig's bus time at its bit rate: every frame on the bus while the node is
+  off ends in 11 recessive bits (ACK delimiter, end of frame, intermission: one occurrence),
+  and the time the bus is idle gives one per 11 bit times, the frames' own bits (from
+  :func:`hil.softbus.timing.frame_bits`) taken out of it. The node hears *error active* at the
+  first bus time the count reaches 128 (on an idle 250 kbit/s bus 128 x 11 bits are 5.6 ms:
+  in lockstep, the next SYNC) and its frames go on the bus again.
 * **configuration** (0x40): the baud rate and the arbitration-lost behaviour the node asks for
   are kept (and recorded); the rig's bit rate stays what the rig's bus runs at.
 * **wake-up** (0x42) from the node is counted; the rig's bus never sleeps, so no wake-up is
@@ -47,6 +56,12 @@ __all__ = ["CanNodeBus", "LsBusError"]
 
 ERROR_PASSIVE_LIMIT = 127
 BUS_OFF_LIMIT = 255
+#: ISO 11898-1 bus-off recovery: 128 occurrences of 11 consecutive recessive bits
+RECOVERY_OCCURRENCES = 128
+RECESSIVE_RUN_BITS = 11
+#: SocketCAN's error classes (linux/can/error.h): controller problems, bus off
+CAN_ERR_CRTL = 0x004
+CAN_ERR_BUSOFF = 0x040
 
 
 _DELIVERED = {lsbus.CanTransmit: "frames", lsbus.Confirm: "confirm",
@@ -75,10 +90,13 @@ class CanNodeBus:
         The node's terminal name (named in errors).
     notifications : bool
         ``BusNotifications``: confirm, arbitration lost and bus error reach the node.
+    bitrate_bps : int, optional
+        The rig's bus bit rate (the bus-off recovery's bit times).
     """
 
     terminal: str
     notifications: bool
+    bitrate_bps: int = 250_000
     tec: int = 0
     rec: int = 0
     status: int = lsbus.ERROR_ACTIVE
@@ -89,7 +107,15 @@ class CanNodeBus:
     counts: dict[str, int] = field(default_factory=lambda: {
         "transmitted": 0, "confirmed": 0, "arbitration_lost": 0, "discarded": 0,
         "bus_errors": 0, "wakeups": 0, "dropped_bus_off": 0,
-        "missed_bus_off": 0})
+        "missed_bus_off": 0, "bus_off": 0, "bus_off_recoveries": 0})
+    #: the bus time now (s): the last :meth:`time_advanced`
+    now_s: float = 0.0
+    #: when the node last went bus off and last recovered (bus time, s)
+    bus_off_at_s: float | None = None
+    recovered_at_s: float | None = None
+    #: while bus off: the frames on the bus since, and their bits
+    _off_frames: int = 0
+    _off_bits: int = 0
     #: operations handed to the node, by kind (``confirm``, ``bus_error`` ...)
     delivered: dict[str, int] = field(default_factory=dict)
     _unconfirmed: deque[int] = field(default_factory=deque)
@@ -185,15 +211,37 @@ class CanNodeBus:
                              f"discard and notify)")
 
     # --- from the bus ----------------------------------------------------------------------
-    def time_advanced(self) -> None:
-        """The bus time moves on (a SYNC): the node's frames that no error frame destroyed
-        meanwhile have been transmitted, and are confirmed.
+    def time_advanced(self, now_s: float | None = None) -> None:
+        """The bus time moves on (a SYNC, to ``now_s``): the node's frames that no error frame
+        destroyed meanwhile have been transmitted, and are confirmed; a node that is bus off
+        recovers once the bus has shown it 128 x 11 recessive bits since.
 
         Not at any frame: on a paced bus the frames the node hears right after sending were on
         the wire before its own.
         """
+        if now_s is not None:
+            self.now_s = now_s
         if self.status != lsbus.BUS_OFF:
             self._confirm_all()
+        elif self.recovery_occurrences() >= RECOVERY_OCCURRENCES:
+            self._recover()
+
+    def recovery_occurrences(self) -> int:
+        """While bus off: the occurrences of 11 consecutive recessive bits since it went off
+        (one per frame on the bus, one per 11 idle bit times)."""
+        if self.bus_off_at_s is None:
+            return 0
+        # bit times are whole: rounded, so that a float's last digit does not lose one
+        elapsed = round((self.now_s - self.bus_off_at_s) * self.bitrate_bps, 6)
+        idle = max(0.0, elapsed - self._off_bits)
+        return self._off_frames + int(idle // RECESSIVE_RUN_BITS)
+
+    def _recover(self) -> None:
+        self.status = lsbus.ERROR_ACTIVE
+        self.tec = self.rec = 0
+        self.recovered_at_s = self.now_s
+        self.counts["bus_off_recoveries"] += 1
+        self._to_node.append(lsbus.Status(lsbus.ERROR_ACTIVE))
 
     def from_bus(self, msg: can.Message) -> None:
         """A frame of the rig's bus reaches the node (an error frame: a bus error).
@@ -201,10 +249,15 @@ class CanNodeBus:
         A node that is bus off takes no part in the bus: it hears nothing.
         """
         if self.status == lsbus.BUS_OFF:
+            from hil.softbus.timing import ERROR_FRAME_BITS, frame_bits
+
             self.counts["missed_bus_off"] += 1
+            self._off_frames += 1
+            self._off_bits += ERROR_FRAME_BITS if msg.is_error_frame else frame_bits(
+                msg.arbitration_id, msg.is_extended_id, bytes(msg.data))
             return
         if msg.is_error_frame:
-            self._bus_error()
+            self._bus_error(bus_off=bool(msg.arbitration_id & CAN_ERR_BUSOFF))
             return
         self._to_node.append(lsbus.CanTransmit(id=msg.arbitration_id, data=bytes(msg.data),
                                                ide=msg.is_extended_id, rtr=msg.is_remote_frame))
@@ -218,11 +271,11 @@ class CanNodeBus:
                 self._to_node.append(lsbus.Confirm(can_id))
         self._update_status()
 
-    def _bus_error(self) -> None:
+    def _bus_error(self, *, bus_off: bool = False) -> None:
         self.counts["bus_errors"] += 1
         if self._unconfirmed:
             can_id = self._unconfirmed.popleft()
-            self.tec += 8
+            self.tec = BUS_OFF_LIMIT + 1 if bus_off else self.tec + 8
             op = lsbus.BusError(can_id, lsbus.BIT_ERROR, lsbus.PRIMARY_ERROR_FLAG, True)
         else:
             self.rec = min(self.rec + 1, 255)
@@ -244,6 +297,9 @@ class CanNodeBus:
             self.status = new
             if new == lsbus.BUS_OFF:
                 self._unconfirmed.clear()
+                self.counts["bus_off"] += 1
+                self.bus_off_at_s = self.now_s
+                self._off_frames = self._off_bits = 0
             self._to_node.append(lsbus.Status(new))
 
     def pending(self) -> bool:
@@ -265,6 +321,7 @@ class CanNodeBus:
                 "status": lsbus.STATUS_NAMES.get(self.status, str(self.status)),
                 "transmit_error_counter": self.tec, "receive_error_counter": self.rec,
                 "configured_baudrate": self.baudrate,
+                "bus_off_at_s": self.bus_off_at_s, "recovered_at_s": self.recovered_at_s,
                 "arbitration_lost_behavior": ("discard and notify"
                                               if self.arbitration_lost_behavior ==
                                               lsbus.DISCARD_AND_NOTIFY

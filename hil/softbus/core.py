@@ -33,6 +33,7 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 _ERROR_CLASS_CONTROLLER = 0x004  # CAN_ERR_CRTL, what SocketCAN reports for bus errors
+_ERROR_CLASS_BUSOFF = 0x040  # CAN_ERR_BUSOFF: the busoff rule's error frame says so
 #: The most frames a delay fault holds back at once; beyond, frames it would delay are dropped
 #: and counted (``delayed_dropped``).
 MAX_DELAYED = 100_000
@@ -261,8 +262,9 @@ class BusCore:
         if self.faults:
             verdict = self.faults.apply(frame.can_id, frame.data)
             if verdict.error_frame:
-                self._broadcast(None, Frame(_ERROR_CLASS_CONTROLLER, b"", True, error=True),
-                                channel, mono)
+                error_class = _ERROR_CLASS_CONTROLLER | (
+                    _ERROR_CLASS_BUSOFF if verdict.bus_off else 0)
+                self._broadcast(None, Frame(error_class, b"", True, error=True), channel, mono)
             if verdict.drop:
                 return
             if verdict.data is not None:

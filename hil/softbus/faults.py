@@ -12,8 +12,9 @@ one thing to each match:
 ``error``
     the frame is destroyed on the wire: receivers see an error frame instead of it;
 ``busoff``
-    the sending node goes bus-off: receivers see an error frame, then no frame matching the
-    rule passes until the rule is cleared.
+    the sending node goes bus-off: receivers see an error frame (of the SocketCAN classes
+    controller problem and bus off, ``CAN_ERR_CRTL | CAN_ERR_BUSOFF``), then no frame matching
+    the rule passes until the rule is cleared.
 
 ``count`` limits how many matches a rule acts on (0 = unlimited). Randomness comes from one
 seeded generator per server, so a run with the same seed and traffic injects the same faults.
@@ -120,6 +121,7 @@ class Verdict:
 
     drop: bool = False
     error_frame: bool = False
+    bus_off: bool = False  # the error frame says its sender went bus off
     delay_s: float = 0.0
     data: bytes | None = None  # replacement payload when corrupted
 
@@ -188,4 +190,5 @@ class FaultTable:
                 verdict.drop = True
                 verdict.error_frame = True
                 active.tripped = rule.kind is FaultKind.BUSOFF
+                verdict.bus_off = verdict.bus_off or active.tripped
         return verdict
