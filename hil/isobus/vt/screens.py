@@ -23,6 +23,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+from PIL import Image
+
 from hil.isobus.vt.commands import is_enabled
 from hil.isobus.vt.layouts import ObjectType
 from hil.isobus.vt.render import GAP, render, visible_signature
@@ -120,9 +122,7 @@ class ScreenRecorder:
         o = self.vt.options
         image = render(ws, o.data_mask_px, o.soft_key_width_px, o.soft_key_height_px,
                        o.physical_soft_keys)
-        buffer = io.BytesIO()
-        image.save(buffer, format="PNG")
-        png = buffer.getvalue()
+        png = png_bytes(image)
         self.latest_png[ws.address] = png
         self.drawn += 1
         self.latest[ws.address] = (self.drawn, png, hotspots(ws, o.data_mask_px,
@@ -142,6 +142,20 @@ class ScreenRecorder:
                         reason, name, hashlib.sha256(png).hexdigest())
         self.screens.append(screen)
         return screen
+
+
+def png_bytes(image: Image.Image) -> bytes:
+    """A screen as PNG: with its own palette when it has 256 colours or fewer and the palette
+    gives every pixel back exactly (a VT draws from the standard's 256 colours: a screen is
+    then about a third of its RGB PNG's size), else as it is."""
+    buffer = io.BytesIO()
+    if image.mode == "RGB" and image.getcolors(256) is not None:
+        indexed = image.quantize(256)
+        if indexed.convert("RGB").tobytes() == image.tobytes():
+            indexed.save(buffer, format="PNG", optimize=True)
+            return buffer.getvalue()
+    image.save(buffer, format="PNG")
+    return buffer.getvalue()
 
 
 @dataclass(frozen=True)
