@@ -65,6 +65,12 @@ _COUNT = struct.Struct("<H")
 _EXT, _RTR, _ERR, _FD, _BRS, _ESI, _RX = 1, 2, 4, 8, 16, 32, 64
 
 OP_START, OP_FRAME, OP_RECORD, OP_CLOSE = b"S", b"F", b"R", b"Q"
+#: a frame the controller never answers (its ``silent``): held back and sent with the next
+#: request, in order, without an answer of its own
+OP_PUSH = b"P"
+#: held frames' carrier when there are many (no answer); the most held back at once
+OP_FLUSH = b"H"
+MAX_HELD = 256
 ANS_FRAMES, ANS_VALUE, ANS_RAISED = b"k", b"v", b"x"
 
 
@@ -106,8 +112,13 @@ def decode_frames(buf: bytes | memoryview) -> list[can.Message]:
     return out
 
 
-def _write(fd: int, kind: bytes, payload: bytes) -> None:
-    data = memoryview(_LEN.pack(len(payload) + 1) + kind + payload)
+def _message(kind: bytes, payload: bytes) -> bytes:
+    return _LEN.pack(len(payload) + 1) + kind + payload
+
+
+def _write(fd: int, kind: bytes, payload: bytes, before: bytes = b"") -> None:
+    """One message (after ``before``: messages held back) in as few writes as the pipe takes."""
+    data = memoryview(before + _message(kind, payload))
     while data:
         data = data[os.write(fd, data):]
 
@@ -171,11 +182,26 @@ def _child(controller: Controller, requests: int, answers: int, stderr: int, kee
     from hil.fmi import instance
 
     instance.log_sink = lambda line: os.write(2, f"fmu: {line}\n".encode(errors="replace"))
+    deferred: BaseException | None = None     # what a pushed frame raised, told next
     while True:
         request = _read(requests)
         if request is None:          # the rig went away
             return 0
         op, payload = request
+        if op == OP_PUSH:
+            try:
+                if controller.on_frame(_decode_frame(payload, 0)[0]) and deferred is None:
+                    deferred = RuntimeError("the controller answered a frame it declared "
+                                            "silent (FMU host)")
+            except BaseException as exc:
+                deferred = deferred or exc
+            continue
+        if op == OP_FLUSH:
+            continue
+        if deferred is not None and op != OP_CLOSE:
+            _write(answers, ANS_RAISED, _raised(deferred))
+            deferred = None
+            continue
         try:
             if op == OP_FRAME:
                 msg, _ = _decode_frame(payload, 0)
@@ -233,6 +259,12 @@ class HostedController(Controller):
     def __init__(self, controller: Controller, *, fmu: Path, timeout_s: float,
                  name: str = "fmu") -> None:
         self.inner = controller
+        #: the controller's ``silent(msg)``: True for a frame it never answers (a signal-level
+        #: FMU's frames but SYNC), which then goes without a round trip
+        self._silent: Callable[[can.Message], bool] | None = getattr(controller, "silent",
+                                                                     None)
+        self.pushed = 0
+        self._held: list[bytes] = []
         self.fmu = fmu
         self.timeout_s = timeout_s
         self.name = name
@@ -273,6 +305,7 @@ class HostedController(Controller):
         for fd in (req_r, ans_w, err_w):
             os.close(fd)
         self.pid = pid
+        self._held = []
         self._requests, self._answers = req_w, ans_r
         self._poller = select.poll()
         self._poller.register(ans_r, select.POLLIN | select.POLLHUP | select.POLLERR)
@@ -360,8 +393,16 @@ class HostedController(Controller):
                              f"before)")
         doing = self._doing(op, msg)
         self.calls += 1
+        if op == OP_PUSH:
+            self._held.append(_message(op, payload))
+            if len(self._held) < MAX_HELD:
+                return ANS_FRAMES, _COUNT.pack(0)
+            op, payload = OP_FLUSH, b""          # a long run of them: sent on their own
+        held, self._held = b"".join(self._held), []
         try:
-            _write(self._requests, op, payload)
+            _write(self._requests, op, payload, held)
+            if op == OP_FLUSH:
+                return ANS_FRAMES, _COUNT.pack(0)
             answer = _read(self._answers, time.monotonic() + self.timeout_s, self._poller)
         except TimeoutError:
             self._reap(kill=True)
@@ -401,7 +442,9 @@ class HostedController(Controller):
         if not msg.is_extended_id and msg.arbitration_id == SYNC_ID and \
                 not msg.is_error_frame:
             self.syncs += 1
-        return self._frames(OP_FRAME, _encode_frame(msg), msg)
+        silent = self._silent is not None and self._silent(msg)
+        self.pushed += silent
+        return self._frames(OP_PUSH if silent else OP_FRAME, _encode_frame(msg), msg)
 
     def record(self) -> Any:
         """The controller's record (the node's bus at bus level), as the host last gave it."""
@@ -418,7 +461,8 @@ class HostedController(Controller):
 
     def host_record(self) -> dict[str, Any]:
         """What the run's record keeps of the host."""
-        return {"isolation": "process", "calls": self.calls, "cpu_s": self.cpu_s,
+        return {"isolation": "process", "calls": self.calls,
+                "round_trips": self.calls - self.pushed, "cpu_s": self.cpu_s,
                 "timeout_s": self.timeout_s}
 
     def close(self) -> None:

@@ -212,6 +212,11 @@ class SignalFmuController(Controller):
             self.latest.update(values)
         return []
 
+    def silent(self, msg: can.Message) -> bool:
+        """Whether the controller never answers ``msg`` (every frame but SYNC: they only set
+        the inputs of the next step), so the FMU host need not wait for its answer."""
+        return msg.is_error_frame or msg.is_extended_id or msg.arbitration_id != SYNC_ID
+
     def _step(self) -> list[can.Message]:
         inst = self.inst
         assert inst is not None, "on_frame before on_start"

@@ -143,6 +143,7 @@ def test_an_fmu_that_aborts_exits_or_hangs_fails_its_run_named(
     assert (tmp_path / "run" / "traces.npz").is_file()
 
 
+@pytest.mark.slow
 def test_hil_run_with_a_segfaulting_fmu_ends_as_with_a_dying_dut(
         tmp_path: Path, hil_forked: HilForkServer) -> None:
     """``hil run``: the same exit status as a DUT process that dies (1: the DUT stopped; see
@@ -205,3 +206,76 @@ def test_a_bad_host_timeout_is_refused_naming_the_key(tmp_path: Path) -> None:
 
     with pytest.raises(ConfigError, match=r"fmu\.host_timeout_s"):
         load_profile(crash_profile(tmp_path, "segv", 0, timeout_s=0.0))
+
+
+class _Fake:
+    """A controller with no FMU: answers SYNC with 0x220, never answers 0x100 (its ``silent``
+    frames), and raises on a 0x100 with data ``ff``."""
+
+    name = "fake"
+
+    def configure(self, env: dict[str, str]) -> None:
+        self.env = env
+
+    def on_start(self) -> list:
+        import can
+
+        return [can.Message(arbitration_id=0x710, data=b"\x00", is_extended_id=False)]
+
+    def silent(self, msg) -> bool:
+        return msg.arbitration_id == 0x100
+
+    def on_frame(self, msg) -> list:
+        import can
+
+        if msg.arbitration_id == 0x100 and bytes(msg.data) == b"\xff":
+            raise ZeroDivisionError("a bug in a silent frame")
+        if msg.arbitration_id == 0x080:
+            return [can.Message(arbitration_id=0x220, data=b"\x01", is_extended_id=False)]
+        return []
+
+
+def test_silent_frames_go_without_a_round_trip_and_their_errors_come_at_the_next() -> None:
+    import can
+
+    sync = can.Message(arbitration_id=0x080, data=b"", is_extended_id=False)
+    quiet = can.Message(arbitration_id=0x100, data=b"\x01", is_extended_id=False)
+    bad = can.Message(arbitration_id=0x100, data=b"\xff", is_extended_id=False)
+    hosted = HostedController(_Fake(), fmu=Path("fake.fmu"), timeout_s=10.0)  # type: ignore[arg-type]
+    try:
+        assert [m.arbitration_id for m in hosted.on_start()] == [0x710]
+        assert hosted.on_frame(quiet) == [] and hosted.on_frame(quiet) == []
+        assert [m.arbitration_id for m in hosted.on_frame(sync)] == [0x220]
+        assert hosted.host_record()["round_trips"] == 2        # start and the SYNC
+        assert hosted.on_frame(bad) == []
+        with pytest.raises(ZeroDivisionError, match="a bug in a silent frame"):
+            hosted.on_frame(sync)
+        assert [m.arbitration_id for m in hosted.on_frame(sync)] == [0x220]   # told once
+    finally:
+        hosted.close()
+    assert hosted.pid is None and hosted.host_record()["cpu_s"] is not None
+
+
+def test_a_copy_of_the_rig_process_cannot_drive_its_host() -> None:
+    """What a prefix checkpoint's fork of the rig would meet: a refusal, not a shared FMU."""
+    import os
+
+    import can
+
+    hosted = HostedController(_Fake(), fmu=Path("fake.fmu"), timeout_s=10.0)  # type: ignore[arg-type]
+    try:
+        hosted.on_start()
+        assert threading.active_count() > 1      # so hil.rig.checkpoint holds no run now
+        pid = os.fork()
+        if pid == 0:
+            code = 3
+            try:
+                hosted.on_frame(can.Message(arbitration_id=0x080, is_extended_id=False))
+            except DutStopped as exc:
+                code = 0 if "copy of the rig's process" in str(exc) else 4
+            finally:
+                os._exit(code)
+        assert os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]) == 0
+        assert hosted.on_frame(can.Message(arbitration_id=0x080, is_extended_id=False))
+    finally:
+        hosted.close()
