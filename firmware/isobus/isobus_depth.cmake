@@ -10,8 +10,11 @@ add_library(agrihil_isobus_depth STATIC ${ISOBUS_DIR}/iso_ddop.c ${ISOBUS_DIR}/i
             ${ISOBUS_DIR}/iso_tc.c ${ISOBUS_DIR}/iso_depth.c)
 target_include_directories(agrihil_isobus_depth PUBLIC ${ISOBUS_DIR})
 target_link_libraries(agrihil_isobus_depth PUBLIC agrihil_adapters)
+# the ISOBUS programs' loop (iso_app.c: app_run's contract, a whole CTS window per step), the
+# fertilizer's program (isobus.cmake) and the depth's
 add_library(agrihil_iso_app STATIC ${ISOBUS_DIR}/iso_app.c)
 target_link_libraries(agrihil_iso_app PUBLIC agrihil_app)
+target_link_libraries(agrihil-fertilizer-isobus-fw PRIVATE agrihil_iso_app)
 add_executable(agrihil-sowing-depth-isobus-fw ${ISOBUS_DIR}/depth_isobus_main.c)
 target_link_libraries(agrihil-sowing-depth-isobus-fw PRIVATE agrihil_isobus_depth agrihil_iso_app)
 # the depth vectors' replay and the depth DDOP check (targets without BUILD_TESTING too: the

@@ -4,30 +4,21 @@
  * controller names them: address, identity_number, width_m (numbers), speed=ground|wheel,
  * ddop=valid|broken; vt=yes (the operator interface on a VT, isobus_vt.py) and vt_defect=NAME.
  *
- * The loop is its own, not app_run(): a CTS from the Task Controller is answered with up to
- * 255 TP data frames at once, more than app_run's APP_MAX_OUT (8). As there, the command frame
- * 0x220 ends each step (so no step-end frame is needed in lockstep), the boot-up frame goes
- * first, SIGTERM/SIGINT stop it with status 0, a bus failure gives 1, bad arguments 2. */
-#include <signal.h>
+ * The loop is iso_app_run (iso_app.h), not app_run(): a CTS from the Task Controller is
+ * answered with up to 255 TP data frames at once, more than app_run's APP_MAX_OUT (8). As
+ * there, the command frame 0x220 ends each step (so no step-end frame is needed in lockstep),
+ * the boot-up frame goes first, SIGTERM/SIGINT stop it with status 0, a bus failure gives 1,
+ * bad arguments 2. */
 #include <stdio.h>
 #include <string.h>
 
 #include "app.h"
-#include "hal_time.h"
+#include "iso_app.h"
 #include "iso_fert.h"
-
-#define IDLE_WAIT_US 50000
 
 static const app_info_t INFO = {"agrihil-fertilizer-isobus-fw", true, 100.0};
 static iso_fert_t controller;
 static iso_fert_config_t cfg;
-static volatile sig_atomic_t stop_requested = 0;
-
-static void on_signal(int sig)
-{
-    (void)sig;
-    stop_requested = 1;
-}
 
 static bool is_law_key(const char *key)
 {
@@ -65,82 +56,25 @@ static int word_param(void *ctx, const char *key, const char *value)
     return vt;
 }
 
-static int send_all(hal_can_t *bus, const hal_can_frame_t *out, size_t n)
+static size_t on_frame(void *ctx, const hal_can_frame_t *frame)
 {
-    for (size_t i = 0; i < n; i++) {
-        if (hal_can_send(bus, &out[i]) != 0) {
-            app_error(&INFO, "bus failure: %s", bus->error);
-            return -1;
-        }
-    }
-    return 0;
+    return iso_fert_on_frame(ctx, frame);
+}
+
+static size_t step(void *ctx)
+{
+    return iso_fert_step(ctx);
+}
+
+static const hal_can_frame_t *out(void *ctx)
+{
+    return ((iso_fert_t *)ctx)->out;
 }
 
 static int run(const app_options_t *opt)
 {
-    static hal_can_t bus;
-    struct sigaction sa;
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = on_signal;
-    sigemptyset(&sa.sa_mask);
-    sigaction(SIGTERM, &sa, NULL);
-    sigaction(SIGINT, &sa, NULL);
-    signal(SIGPIPE, SIG_IGN);
-    if (hal_can_open(&bus, opt->bus) != 0) {
-        app_error(&INFO, "%s", bus.error);
-        return APP_EXIT_BUS;
-    }
-    hal_can_frame_t boot = iso_fert_bootup();
-    if (send_all(&bus, &boot, 1) != 0) {
-        hal_can_close(&bus);
-        return APP_EXIT_BUS;
-    }
-    fprintf(stderr, "%s: on %s, %s, period %g ms\n", INFO.name, opt->bus,
-            opt->sync ? "lockstep (one step per SYNC)" : "free-running", opt->period_ms);
-    const int64_t period_ns = (int64_t)(opt->period_ms * 1e6);
-    int64_t deadline_ns = hal_time_now_ns() + period_ns;
-    int status = APP_EXIT_OK;
-    while (!stop_requested) {
-        int64_t wait_us = IDLE_WAIT_US;
-        if (!opt->sync) {
-            int64_t now_ns = hal_time_now_ns();
-            if (now_ns >= deadline_ns) {
-                size_t n = iso_fert_step(&controller);
-                if (send_all(&bus, controller.out, n) != 0) {
-                    status = APP_EXIT_BUS;
-                    break;
-                }
-                deadline_ns += period_ns;
-                if (now_ns - deadline_ns > period_ns) {
-                    deadline_ns = now_ns + period_ns; /* fell far behind: skip, don't burst */
-                }
-                continue;
-            }
-            wait_us = (deadline_ns - now_ns + 999) / 1000;
-            if (wait_us > IDLE_WAIT_US) {
-                wait_us = IDLE_WAIT_US;
-            }
-        }
-        hal_can_frame_t frame;
-        int rc = hal_can_recv(&bus, &frame, wait_us);
-        if (rc == HAL_CAN_ERROR) {
-            if (stop_requested) {
-                break;
-            }
-            app_error(&INFO, "bus failure: %s", bus.error);
-            status = APP_EXIT_BUS;
-            break;
-        }
-        if (rc != HAL_CAN_FRAME) {
-            continue;
-        }
-        size_t n = iso_fert_on_frame(&controller, &frame);
-        if (send_all(&bus, controller.out, n) != 0) {
-            status = APP_EXIT_BUS;
-            break;
-        }
-    }
-    hal_can_close(&bus);
+    iso_app_hooks_t hooks = {&controller, on_frame, step, out, NULL, iso_fert_bootup()};
+    int status = iso_app_run(&INFO, opt, &hooks);
     if (status == APP_EXIT_OK) {
         fprintf(stderr, "%s: stopped after %u steps, TC client %s, %u connection(s)\n",
                 INFO.name, (unsigned)controller.steps,
