@@ -1,5 +1,5 @@
-/* The control loop of the ISOBUS programs (agrihil-sowing-depth-isobus-fw; the fertilizer's
- * isobus_main.c has the same loop): app_run()'s contract (app.h: the boot-up frame first,
+/* The control loop of the ISOBUS programs (agrihil-fertilizer-isobus-fw, isobus_main.c, and
+ * agrihil-sowing-depth-isobus-fw, depth_isobus_main.c): app_run()'s contract (app.h: the boot-up frame first,
  * lockstep on SYNC or free-running on an absolute-deadline timer, SIGTERM/SIGINT -> 0, a bus
  * failure -> 1), but a step may send as many frames as the controller's outbox holds: a CTS from
  * the Task Controller is answered with up to 255 TP data frames at once, more than app_run's
