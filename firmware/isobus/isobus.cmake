@@ -21,6 +21,9 @@ add_executable(test_iso_ddop ${ISOBUS_DIR}/test_iso_ddop.c)
 target_link_libraries(test_iso_ddop PRIVATE agrihil_isobus)
 add_executable(test_iso_pool ${ISOBUS_DIR}/test_iso_pool.c)
 target_link_libraries(test_iso_pool PRIVATE agrihil_isobus)
+# the network layer alone sending the VT pool of 16 rows by ETP (replay_isobus.c's loop)
+add_executable(replay_isobus_net ${ISOBUS_DIR}/replay_isobus.c ${ISOBUS_DIR}/replay_net.c)
+target_link_libraries(replay_isobus_net PRIVATE agrihil_isobus)
 
 if(BUILD_TESTING)
   # the shared vectors of the Python build: every frame the C controller sends must be the
@@ -83,6 +86,7 @@ if(BUILD_TESTING)
   endforeach()
   add_test(NAME isobus_vt_vectors COMMAND replay_isobus ${ISOBUS_VT_VECTORS})
   add_test(NAME isobus_vt_pool COMMAND test_iso_pool ${ISOBUS_DIR}/data/vt-pool.txt)
+  add_test(NAME isobus_vt_net_etp COMMAND replay_isobus_net ${ISOBUS_DIR}/data/vt-net-etp.frames)
   add_test(NAME isobus_vt_cli_bad_vt COMMAND sh ${CLI} 2 "parameter 'vt' must be yes or no"
            ${ISOFW} --bus socketcand:127.0.0.1:9 --param vt=maybe)
   add_test(NAME isobus_vt_cli_bad_defect COMMAND sh ${CLI} 2 "parameter 'vt_defect' must be one of"

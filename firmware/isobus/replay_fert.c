@@ -43,6 +43,15 @@ int replay_configure(const char *path, char *params)
             cfg.ddop_broken = strcmp(value, "broken") == 0;
             continue;
         }
+        const char *vt_why = NULL;
+        int vt = iso_fert_vt_param(&cfg, tok, value, &vt_why);
+        if (vt < 0) {
+            fprintf(stderr, "%s: %s\n", path, vt_why);
+            return 2;
+        }
+        if (vt > 0) {
+            continue; /* vt=yes, vt_defect=... (the VT vectors, data/vt-*.frames) */
+        }
         if (param_set(refs, n, tok, value) != PARAM_OK) {
             fprintf(stderr, "%s: bad parameter %s=%s\n", path, tok, value);
             return 2;

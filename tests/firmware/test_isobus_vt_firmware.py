@@ -37,7 +37,7 @@ from reference_controllers.fertilizer.operator_pool import IDS
 
 ROOT = Path(__file__).resolve().parents[2]
 APP = "agrihil-fertilizer-isobus-fw"
-TARGETS = (APP, "replay_isobus", "test_iso_pool")
+TARGETS = (APP, "replay_isobus", "test_iso_pool", "replay_isobus_net")
 SYNC = can.Message(arbitration_id=0x080, is_extended_id=False, data=b"")
 COMMAND = 0x220
 DB = FertilizerDatabase()
@@ -95,6 +95,10 @@ def test_the_committed_vt_pool_file_is_the_python_pool() -> None:
     assert (rec.DATA / rec.POOL_FILE).read_text().splitlines() == rec.pool_lines()
 
 
+def test_the_committed_etp_vector_is_what_the_python_network_sends() -> None:
+    assert (rec.DATA / rec.ETP_FILE).read_text().splitlines() == rec.etp_lines()
+
+
 def test_the_vt_vectors_cover_the_operator_path() -> None:
     """What the operator's vector holds: the pool uploaded by TP and stored, Master, the alarm,
     the calibration, the load from storage after the VT's restart (frames to the VT, 0x26)."""
@@ -120,6 +124,11 @@ def test_the_c_build_answers_the_vt_vectors_byte_for_byte(isobus_bin: Path) -> N
                            str(rec.DATA / rec.POOL_FILE)], capture_output=True, text=True,
                           timeout=60)
     assert done.returncode == 0 and "17 pools identical" in done.stdout, done.stdout + done.stderr
+    # ETP sending (the network layer alone: the 16-row pool, 2,075 bytes)
+    done = subprocess.run([str(isobus_bin.with_name("replay_isobus_net")),
+                           str(rec.DATA / rec.ETP_FILE)], capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 0 and ": identical" in done.stdout, done.stdout + done.stderr
 
 
 def test_the_replay_fails_a_vector_the_c_build_does_not_send(isobus_bin: Path,
