@@ -87,6 +87,9 @@ if(BUILD_TESTING)
   add_test(NAME isobus_vt_vectors COMMAND replay_isobus ${ISOBUS_VT_VECTORS})
   add_test(NAME isobus_vt_pool COMMAND test_iso_pool ${ISOBUS_DIR}/data/vt-pool.txt)
   add_test(NAME isobus_vt_net_etp COMMAND replay_isobus_net ${ISOBUS_DIR}/data/vt-net-etp.frames)
+  add_test(NAME isobus_vt_vectors_detect_changed_byte
+           COMMAND sh ${CLI} 1 "vt-detect-changed-byte.frames:43 (step 4): vector 14E72681#C0FF18040000FFFF, C controller 14E72681#C0FF17040000FFFF"
+                   $<TARGET_FILE:replay_isobus> ${ISOBUS_DIR}/data/vt-detect-changed-byte.frames)
   add_test(NAME isobus_vt_cli_bad_vt COMMAND sh ${CLI} 2 "parameter 'vt' must be yes or no"
            ${ISOFW} --bus socketcand:127.0.0.1:9 --param vt=maybe)
   add_test(NAME isobus_vt_cli_bad_defect COMMAND sh ${CLI} 2 "parameter 'vt_defect' must be one of"

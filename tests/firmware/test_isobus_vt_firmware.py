@@ -114,7 +114,8 @@ def test_the_vt_vectors_cover_the_operator_path() -> None:
 
 def test_the_c_build_answers_the_vt_vectors_byte_for_byte(isobus_bin: Path) -> None:
     """What ctest's isobus_vt_vectors and isobus_vt_pool do, in the pytest run CI makes."""
-    vectors = sorted(p for p in rec.DATA.glob(f"vt-*{rec.SUFFIX}") if p.name != rec.ETP_FILE)
+    vectors = sorted(p for p in rec.DATA.glob(f"vt-*{rec.SUFFIX}")
+                     if p.name != rec.ETP_FILE and not p.name.startswith("vt-detect-"))
     assert {p.stem for p in vectors} == {s.name for s in rec.scenarios()}
     done = subprocess.run([str(isobus_bin.with_name("replay_isobus")), *map(str, vectors)],
                           capture_output=True, text=True, timeout=60)
