@@ -144,6 +144,18 @@ def test_an_fmu_that_aborts_exits_or_hangs_fails_its_run_named(
 
 
 @pytest.mark.slow
+def test_on_the_software_bus_a_segfaulting_fmu_fails_its_run_named(tmp_path: Path) -> None:
+    """On the software bus the FMU is driven from a thread of the rig's process: the host's
+    death reaches the run through the DUT's check, as a dying DUT process's does."""
+    result = run(tmp_path / "run", crash_profile(tmp_path, "segv", 11), 3.0, bus="softbus")
+    assert result.verdict == "error"
+    assert result.record["error"].startswith(
+        f"the DUT crashed: the host process of FMU {FMU_NAME} died of SIGSEGV handling "
+        f"SYNC 11 at t = 1."), result.record["error"]
+    assert (tmp_path / "run" / "bus.log").stat().st_size > 0
+
+
+@pytest.mark.slow
 def test_hil_run_with_a_segfaulting_fmu_ends_as_with_a_dying_dut(
         tmp_path: Path, hil_forked: HilForkServer) -> None:
     """``hil run``: the same exit status as a DUT process that dies (1: the DUT stopped; see
