@@ -23,6 +23,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from PIL import Image
 
 from hil.isobus.vt.commands import is_enabled
@@ -145,15 +146,21 @@ class ScreenRecorder:
 
 
 def png_bytes(image: Image.Image) -> bytes:
-    """A screen as PNG: with its own palette when it has 256 colours or fewer and the palette
-    gives every pixel back exactly (a VT draws from the standard's 256 colours: a screen is
-    then about a third of its RGB PNG's size), else as it is."""
+    """A screen as PNG: indexed with its own colours when it has 256 or fewer (a VT draws from
+    the standard's 256), every pixel exactly its colour, about a third of the RGB PNG's size
+    for ~10 ms more; else RGB as it is."""
     buffer = io.BytesIO()
-    if image.mode == "RGB" and image.getcolors(256) is not None:
-        indexed = image.quantize(256)
-        if indexed.convert("RGB").tobytes() == image.tobytes():
-            indexed.save(buffer, format="PNG", optimize=True)
-            return buffer.getvalue()
+    colours = image.getcolors(256) if image.mode == "RGB" else None
+    if colours:
+        keys = np.sort(np.array([(r << 16) | (g << 8) | b for _, (r, g, b) in colours],
+                                dtype=np.uint32))
+        rgb = np.asarray(image, dtype=np.uint32)
+        packed = (rgb[..., 0] << 16) | (rgb[..., 1] << 8) | rgb[..., 2]
+        indexed = Image.fromarray(np.searchsorted(keys, packed).astype(np.uint8), "P")
+        indexed.putpalette(np.stack([keys >> 16, (keys >> 8) & 0xFF, keys & 0xFF],
+                                    axis=1).astype(np.uint8).tobytes())
+        indexed.save(buffer, format="PNG")
+        return buffer.getvalue()
     image.save(buffer, format="PNG")
     return buffer.getvalue()
 

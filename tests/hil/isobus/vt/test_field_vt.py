@@ -159,3 +159,36 @@ def test_two_lockstep_runs_of_the_vt_scenario_give_identical_bus_logs(
         assert proc.returncode == 0, proc.stdout + proc.stderr
         logs.append((out / "bus.log").read_bytes())
     assert len(logs[0]) > 100_000 and logs[0] == logs[1]
+
+
+def test_vt_down_needs_the_tractors_vt() -> None:
+    from plant_emulators.fertilizer.field_run import FIELD_FAULTS, BoomGeometry, FieldRun
+    from plant_emulators.fertilizer.rig import FertilizerRig
+
+    assert "vt_down" in FIELD_FAULTS and "vt_down" in FertilizerRig.faults
+    scenario = load_scenario(SCENARIOS / "isobus-tc-restart.toml")
+    assert scenario.tractor is not None and not scenario.tractor.vt
+    run = FieldRun(scenario.tractor, BoomGeometry(3.0, 4, -1.0))
+    assert run.vt is None and "vt" not in run.truth()
+    with pytest.raises(ConfigError, match=r"vt = true"):
+        run.set_fault("vt_down", True, 1.0)
+
+
+def test_screens_are_stored_pixel_for_pixel() -> None:
+    """png_bytes: an indexed PNG for a screen of 256 colours or fewer, RGB beyond; the same
+    pixels either way."""
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    from hil.isobus.vt.screens import png_bytes
+
+    rng = np.random.default_rng(1)
+    few = rng.integers(0, 256, (40, 3), dtype=np.uint8)[rng.integers(0, 40, (60, 80))]
+    many = rng.integers(0, 256, (60, 80, 3), dtype=np.uint8)
+    for pixels, mode in ((few, "P"), (many, "RGB")):
+        image = Image.fromarray(pixels, "RGB")
+        back = Image.open(io.BytesIO(png_bytes(image)))
+        assert back.mode == mode
+        assert back.convert("RGB").tobytes() == image.tobytes()

@@ -73,14 +73,14 @@ def test_the_serves_vt_goes_through_its_staging_directory(tmp_path: Path) -> Non
         if "live files" in line:      # the staging exists: nothing of this serve in out/vt
             assert (out / "vt" / "screen-0001.png").read_bytes() == b"an earlier serve's"
 
-    serve(_tractor(), "virtual:serve-vt-staging", out, duration_s=1.2, console=console,
+    serve(_tractor(), "virtual:serve-vt-staging", out, duration_s=0.6, console=console,
           vt=ServeVt())
     assert any("live files" in line for line in seen)
     record = json.loads((out / "vt" / "vt.json").read_text())
     assert record["vt_version"] == 4 and record["working_sets"] == []
     assert not (out / "vt" / "screen-0001.png").exists()     # replaced as a set
     assert not [p for p in out.iterdir() if p.name.startswith(".serve-")]
-    serve(_tractor(), "virtual:serve-vt-staging2", out, duration_s=0.3, console=None)
+    serve(_tractor(), "virtual:serve-vt-staging2", out, duration_s=0.1, console=None)
     assert not (out / "vt").exists() and (out / "bus.log").exists()
 
 
