@@ -8,6 +8,8 @@ The profile's ``[fmu]`` table::
     terminal = "CanChannel"         # bus level: the CAN terminal on the rig's bus (default: the
                                     # FMU's only one)
     bus_notifications = true        # bus level: Can_BusNotifications (confirm, bus errors ...)
+    isolation = "process"           # the FMU in a host process of its own (default), or "none"
+    host_timeout_s = 10.0           # "process": a host that takes longer on one frame is hung
     [fmu.variables]                 # signal level: FMU variable = rig quantity (or quantity[row])
     "FlowRow1" = "row_flow[1]"
 

@@ -291,3 +291,28 @@ def test_a_copy_of_the_rig_process_cannot_drive_its_host() -> None:
         assert hosted.on_frame(can.Message(arbitration_id=0x080, is_extended_id=False))
     finally:
         hosted.close()
+
+
+@pytest.mark.slow
+def test_a_hosted_lsbus_node_answers_and_records_as_in_process(fmus: Path) -> None:
+    import can
+
+    from tests.hil.fmi.test_bus_fmu import SYNC, controller
+
+    rx = can.Message(arbitration_id=0x181, data=b"\x01\x02", is_extended_id=False)
+    answers: dict[str, list[bytes]] = {}
+    records = {}
+    for where in ("host", "rig"):
+        inner = controller(fmus)
+        c = HostedController(inner, fmu=inner.fmu.path, timeout_s=10.0) if where == "host" \
+            else inner
+        try:
+            got = [bytes(m.data) for m in c.on_start()]
+            for _ in range(5):
+                got += [bytes(m.data) for m in c.on_frame(SYNC) + c.on_frame(rx)]
+            answers[where] = got
+            records[where] = c.record()
+        finally:
+            c.close()
+    assert len(answers["host"]) == 5 and answers["host"] == answers["rig"]
+    assert records["host"] == records["rig"] and records["host"]["confirmed"] == 4
