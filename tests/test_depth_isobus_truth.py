@@ -15,6 +15,7 @@ from shapely.geometry import box, mapping
 from hil.isobus.field import LocalFrame, prescription_from_geojson
 from hil.metrics.application_map import transition_distances
 from test_suites.sowing_depth.isobus_truth import (
+    early_departure,
     held_entry,
     judged_cells,
     reported_at,
@@ -68,6 +69,19 @@ def test_the_transition_ends_where_the_seeds_reach_the_new_depth(late_m: float) 
     # the seed line's depth, smoothed over 0.5 m (centred), is in the 36-44 mm band once
     # 60 % of its window is past the step: 0.05 m after it
     assert late_m <= found.transitions[0].distance_m <= late_m + 0.1
+
+
+@pytest.mark.parametrize("early_m", [0.0, 2.0])
+def test_a_depth_that_changes_early_leaves_the_old_zone_before_the_boundary(
+        early_m: float) -> None:
+    traces, truth = _run(late_m=-early_m)
+    cells = seed_line_truth(traces, truth, _map())
+    k = int(np.flatnonzero(np.diff(cells.zone_mm) != 0)[0]) + 1
+    ok_old = np.abs(cells.line_mm - 30.0) <= 3.0
+    early = early_departure(cells.distance_m, ok_old, 0, k)
+    # the smoothed line leaves 27-33 mm once 30 % of its 0.5 m window is past the step:
+    # 0.1 m before it
+    assert early_m + 0.08 <= early <= early_m + 0.12
 
 
 def test_a_depth_that_never_comes_is_an_infinite_transition() -> None:

@@ -9,7 +9,8 @@ with that run time; the map's depth there is its zone's. From those:
 - :func:`judged_cells`: the cells on the passes away from the zone boundaries (the map's depth
   the same ``margin_m`` ahead and behind along the heading);
 - :func:`held_entry`: where a smoothed depth enters a band and stays for a stretch of travel
-  (a transition's end, a fall-back's);
+  (a transition's end, a fall-back's); :func:`early_departure`: how far before a boundary it
+  left the old zone's band (a transition's start);
 - :func:`reported_at`: the implement's last reported actual depth (DDI 57) at given times;
 - :func:`standstill_rod_travel`: how far the rod moved while the machine stood, once it had
   driven.
@@ -30,7 +31,8 @@ import numpy as np
 from hil.isobus.field import load_field, load_prescription
 from hil.isobus.field.prescription import PrescriptionMap
 
-__all__ = ["SMOOTH_M", "SeedLineTruth", "held_entry", "judged_cells", "reported_at",
+__all__ = ["SMOOTH_M", "SeedLineTruth", "early_departure", "held_entry", "judged_cells",
+           "reported_at",
            "seed_line_truth", "smoothed", "standstill_rod_travel"]
 
 #: the truth cells' spacing along the path (the rig's: one per 10 mm of travel)
@@ -144,6 +146,16 @@ def held_entry(distance_m: np.ndarray, ok: np.ndarray, hold_m: float) -> int | N
         if d[i] - d[start] >= hold_m:
             return start
     return start
+
+
+def early_departure(distance_m: np.ndarray, ok_old: np.ndarray, start: int, k: int) -> float:
+    """How far before cell ``k`` (a boundary) the depth last left the old zone's band: the
+    travel from the first cell of the run of cells out of it that ends at ``k``, within
+    ``start .. k`` (the stretch since the previous boundary); 0 when ``k - 1`` is in it."""
+    d = np.asarray(distance_m, dtype=float)
+    inside = np.flatnonzero(np.asarray(ok_old[start:k], dtype=bool))
+    first_out = start + (int(inside[-1]) + 1 if inside.size else 0)
+    return float(d[k] - d[first_out]) if first_out < k else 0.0
 
 
 def reported_at(t_s: np.ndarray, reported: Mapping[str, Sequence[float]]) -> np.ndarray:

@@ -11,9 +11,10 @@ judged:
   per zone, on the passes and away from the zone boundaries (the map's depth the same
   ``BOUNDARY_MARGIN_M`` ahead and behind along the heading), ``isobus.depth.zone_error``
   (|mean true depth - the zone's depth|) and ``isobus.depth.zone_pass_rate`` (the share of
-  seeds in the zone depth's GB/T 20865 band); ``isobus.depth.transition_distance``, from each
-  zone boundary the seed line crosses on a pass to where its true depth stays within 10 % of the
-  new zone's depth for ``HOLD_M``; ``isobus.depth.reported_error`` per zone (|mean DDI 57
+  seeds in the zone depth's GB/T 20865 band); ``isobus.depth.transition_distance``, at each
+  zone boundary the seed line crosses on a pass, the longer of how far before it the true depth
+  left the old zone's 10 % band and how far after it the depth is within 10 % of the new zone's
+  for ``HOLD_M``; ``isobus.depth.reported_error`` per zone (|mean DDI 57
   reported - mean true depth| on the same cells); the rod's travel once the tractor has stopped
   at the end (``isobus.depth.speed_loss.rod_travel``, the TECU reporting 0);
 - ``isobus-depth-drive-jammed``: the rod jammed before the 40 mm zone: the reported depth
@@ -40,6 +41,7 @@ from hil.metrics.depth import qualified_band
 from hil.rig import RunResult
 from test_suites.sowing_depth.isobus_truth import (
     SeedLineTruth,
+    early_departure,
     held_entry,
     judged_cells,
     load_run_truth,
@@ -117,11 +119,21 @@ def test_zone_transitions(hil_run, hil_measure) -> None:
                                  band_pct=BAND_PCT, hold_m=HOLD_M)
     if not found.transitions:
         raise ValueError("isobus-depth-field crossed no zone boundary on a pass")
-    worst = max(found.transitions, key=lambda t: t.distance_m)
-    hil_measure("isobus.depth.transition_distance", worst.distance_m, run=result,
-                note=f"worst of {len(found.transitions)} boundaries: {worst.from_rate:g} -> "
-                     f"{worst.to_rate:g} mm at {worst.at_m:.1f} m of travel; all: "
-                     + ", ".join(f"{t.distance_m:.2f}" for t in found.transitions))
+    line, d = cells.line_mm, cells.distance_m
+    changes = np.flatnonzero(cells.zone_mm[1:] != cells.zone_mm[:-1]) + 1
+    sides = []
+    for t in found.transitions:
+        k = int(np.searchsorted(d, t.at_m))
+        start = int(changes[changes < k].max()) if np.any(changes < k) else 0
+        ok_old = np.abs(line - t.from_rate) <= BAND_PCT / 100.0 * t.from_rate
+        sides.append((early_departure(d, ok_old & cells.on_pass, start, k), t.distance_m))
+    values = [max(early, late) for early, late in sides]
+    worst = int(np.argmax(values))
+    t = found.transitions[worst]
+    hil_measure("isobus.depth.transition_distance", values[worst], run=result,
+                note=f"worst of {len(values)} boundaries: {t.from_rate:g} -> {t.to_rate:g} mm "
+                     f"at {t.at_m:.1f} m of travel; (m before, m after) each: "
+                     + ", ".join(f"({e:.2f}, {a:.2f})" for e, a in sides))
 
 
 def _reported_per_zone(result: RunResult, hil_measure, scenario: str) -> None:
