@@ -84,6 +84,11 @@ def test_the_reference_follows_every_zone(tmp_path: Path) -> None:
     assert _zones(record, "isobus.depth.zone_error") == {
         "30 mm": "pass", "35 mm": "pass", "40 mm": "pass"}
     assert set(_zones(record, "isobus.depth.zone_pass_rate").values()) == {"pass"}
+    # the report draws the depth prescription and the as-sown depth of each field run
+    html = (tmp_path / "ref" / "report.html").read_text(encoding="utf-8")
+    section = html[html.index('<section id="field-maps">'):]
+    assert "<th>sown (mm)</th>" in section
+    assert section[:section.index("</section>")].count("<img ") == 4     # the four runs
 
 
 @pytest.mark.slow
