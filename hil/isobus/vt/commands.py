@@ -5,6 +5,13 @@ the response to send (``None`` for a command inside a macro, which is not answer
 error bits, whether what the operator sees may have changed, and a line for the record. Error
 bits per command are the standard's (bit 0 first); "not applicable" objects (a hide/show to a
 button) get the command's invalid object id bit.
+
+What a hostile working set cannot do with them: a macro may execute macros, 8 deep at most and
+:data:`MAX_MACRO_COMMANDS` commands in all for one command from the bus (a macro listing itself
+a thousand times would otherwise run 1000^8 commands); the rest are abandoned and the execute
+macro response has its "any other error" bit. An object pointer (or external object pointer)
+set to an object that contains it, or that makes an object draw more than the VT draws
+(:func:`hil.isobus.vt.pool.ObjectPool.check_drawable`), is refused with "invalid value".
 """
 
 from __future__ import annotations
@@ -18,11 +25,14 @@ from hil.isobus.vt.codec import VtObject
 from hil.isobus.vt.errors import NO_OBJECT
 from hil.isobus.vt.layouts import ATTRIBUTE_IDS, ObjectType
 from hil.isobus.vt.messages import Function, get16, get32, pad, u16, u32
+from hil.isobus.vt.pool import VtPoolError, drawn_parts
 from hil.isobus.vt.workingset import INPUTS, NUMERIC, STRINGS, WorkingSet
 
 T = ObjectType
 MASKS = (T.DATA_MASK, T.ALARM_MASK)
 MAX_MACRO_DEPTH = 8
+MAX_MACRO_COMMANDS = 1_000
+"""Commands the macros one bus command starts may run in all (nested macros included)."""
 
 
 @dataclass(frozen=True)
@@ -156,7 +166,7 @@ def _numeric(ws: WorkingSet, d: bytes, now: float) -> tuple[int, int, bytes, boo
     error = 0
     if obj is None or obj.type not in NUMERIC:
         error = 0x01
-    elif _bad_number(ws, obj.type, value):
+    elif _bad_number(ws, obj.type, value, oid):
         error = 0x02
     elif ws.open_input == oid:
         error = 0x04
@@ -168,12 +178,37 @@ def _numeric(ws: WorkingSet, d: bytes, now: float) -> tuple[int, int, bytes, boo
         f"numeric value {oid} = {value}"
 
 
-def _bad_number(ws: WorkingSet, otype: ObjectType, value: int) -> bool:
+def _bad_number(ws: WorkingSet, otype: ObjectType, value: int, oid: int = NO_OBJECT) -> bool:
     if otype == T.OBJECT_POINTER:
-        return value != NO_OBJECT and ws.obj(value) is None
+        if value != NO_OBJECT and ws.obj(value) is None:
+            return True
+        return not keeps_drawable(ws, oid, "value", value)
     if otype == T.INPUT_BOOLEAN:
         return value > 1
     return otype in (T.INPUT_LIST, T.OUTPUT_LIST) and value > 255
+
+
+def keeps_drawable(ws: WorkingSet, oid: int, attribute: str, value: int) -> bool:
+    """Whether setting a pointer's ``attribute`` to ``value`` leaves a pool the VT can draw
+    (no object inside itself, none drawing more than it may). A pointer moved from one
+    object that draws nothing else to another is not checked again (the counts stay)."""
+    obj, pool = ws.obj(oid), ws.pool
+    if obj is None or pool is None:
+        return True
+    old = obj.attrs[attribute]
+    if value == old:
+        return True
+    if not drawn_parts(pool, value) and old != NO_OBJECT and old in pool and \
+            not drawn_parts(pool, old):
+        return True
+    obj.attrs[attribute] = value
+    try:
+        pool.check_drawable()
+    except VtPoolError:
+        return False
+    finally:
+        obj.attrs[attribute] = old
+    return True
 
 
 def _attribute_font(ws: WorkingSet, d: bytes, now: float) -> tuple[int, int, bytes, bool, str]:
@@ -277,6 +312,9 @@ def _attribute(ws: WorkingSet, d: bytes, now: float) -> tuple[int, int, bytes, b
             if not bad and f.ref is not None and value != NO_OBJECT:
                 target = ws.obj(int(value))
                 bad = target is None or target.type not in f.ref
+            if not bad and obj.type == T.EXTERNAL_OBJECT_POINTER and \
+                    f.name == "default_object":
+                bad = not keeps_drawable(ws, oid, f.name, int(value))
             if bad:
                 error = 0x04
             else:
@@ -405,7 +443,15 @@ HANDLERS: dict[int, Handler] = {
 _MACRO_LENGTH = {Function.CHANGE_CHILD_POSITION: 9}
 
 
-def apply(ws: WorkingSet, data: bytes, now: float, *, depth: int = 0) -> CommandResult | None:
+class _Budget:
+    """Commands the macros of one bus command may still run."""
+
+    def __init__(self) -> None:
+        self.left = MAX_MACRO_COMMANDS
+
+
+def apply(ws: WorkingSet, data: bytes, now: float, *, depth: int = 0,
+          budget: _Budget | None = None) -> CommandResult | None:
     """Apply one command; ``None`` when the rig's VT does not have the function."""
     if not data:
         return None
@@ -413,7 +459,7 @@ def apply(ws: WorkingSet, data: bytes, now: float, *, depth: int = 0) -> Command
         data = pad(data)
     function = data[0]
     if function in (Function.EXECUTE_MACRO, Function.EXECUTE_EXTENDED_MACRO):
-        return _execute_macro(ws, data, now, depth)
+        return _execute_macro(ws, data, now, depth, budget or _Budget())
     handler = HANDLERS.get(function)
     if handler is None:
         return None
@@ -423,7 +469,8 @@ def apply(ws: WorkingSet, data: bytes, now: float, *, depth: int = 0) -> Command
     return CommandResult(function, oid, error, response, changed, detail)
 
 
-def _execute_macro(ws: WorkingSet, data: bytes, now: float, depth: int) -> CommandResult:
+def _execute_macro(ws: WorkingSet, data: bytes, now: float, depth: int,
+                   budget: _Budget) -> CommandResult:
     extended = data[0] == Function.EXECUTE_EXTENDED_MACRO
     macro_id = get16(data, 1) if extended else data[1]
     macro = ws.obj(macro_id)
@@ -439,13 +486,20 @@ def _execute_macro(ws: WorkingSet, data: bytes, now: float, depth: int) -> Comma
         commands = macro["commands"]
         pos = 0
         while pos < len(commands):
+            if budget.left <= 0:
+                error = 0x04        # the rest abandoned: any other error
+                break
+            budget.left -= 1
             function = commands[pos]
             if function == Function.CHANGE_STRING_VALUE:
-                size = 5 + get16(commands, pos + 3)
+                size = 5 + get16(commands, pos + 3) if pos + 5 <= len(commands) else 8
             else:
                 size = _MACRO_LENGTH.get(function, 8)
-            result = apply(ws, commands[pos:pos + size], now, depth=depth + 1)
+            result = apply(ws, commands[pos:pos + size], now, depth=depth + 1, budget=budget)
             changed |= bool(result and result.changed)
+            if result is not None and result.error and \
+                    function in (Function.EXECUTE_MACRO, Function.EXECUTE_EXTENDED_MACRO):
+                error |= result.error & 0x04
             pos += size
     payload = u16(macro_id) if extended else bytes([macro_id, 0xFF])
     response = None if depth else pad(bytes([data[0]]) + payload[:2] + bytes([error]))

@@ -7,7 +7,11 @@ pool message (a later transfer replaces objects of the same id) and validates th
 - every object reference (children, attribute objects, variables, soft key masks, list
   items, macros) names an object the pool has (else ``UNKNOWN_REFERENCE``) of a type the
   attribute may name (else ``ANY_OTHER``);
-- the working set's active mask is a data or alarm mask.
+- the working set's active mask is a data or alarm mask;
+- the VT can draw it: no object contains itself (through children, keys, list items or object
+  pointers), and no object draws more than :data:`MAX_DRAWN` objects (an object shown twice
+  counts twice: 32 levels of containers each listing the next one twice would be 4 billion
+  objects drawn from 64 bytes of pool). Both are ``ANY_OTHER``, naming the object.
 
 The first fault in pool order raises :class:`~hil.isobus.vt.errors.VtPoolError` naming the
 object and its parent (the first object that lists it), so the end of object pool response
@@ -24,6 +28,10 @@ from hil.isobus.vt.errors import NO_OBJECT, PoolErrorCode, VtPoolError
 from hil.isobus.vt.layouts import LAYOUTS, F, ObjectType, Var, VarKind
 
 T = ObjectType
+
+MAX_DRAWN = 20_000
+"""Objects one object may draw at most, counting each showing (its children, theirs, ...)."""
+_DRAWN_VIA = frozenset({"children", "keys", "items", "object_refs"})
 
 
 class ObjectPool:
@@ -139,6 +147,46 @@ class ObjectPool:
             raise VtPoolError(f"the working set's active mask {ws[0]['active_mask']} does "
                               f"not exist", object_id=ws[0].object_id,
                               code=PoolErrorCode.UNKNOWN_REFERENCE)
+        self.check_drawable()
+
+    def check_drawable(self) -> None:
+        """Raise when an object contains itself or draws more than :data:`MAX_DRAWN` objects
+        (one pass over the pool, each object once)."""
+        drawn: dict[int, int] = {}
+        on_path: set[int] = set()
+        for root in self.objects:
+            if root in drawn:
+                continue
+            # iterative depth-first walk: a chain of 10,000 containers is no recursion error
+            stack: list[tuple[int, list[int]]] = [(root, drawn_parts(self, root))]
+            on_path.add(root)
+            while stack:
+                oid, parts = stack[-1]
+                while parts and parts[-1] in drawn:
+                    parts.pop()
+                if parts:
+                    nxt = parts.pop()
+                    if nxt in on_path:
+                        obj = self.objects[oid]
+                        raise VtPoolError(f"{obj.type.name.lower()} draws object {nxt}, which "
+                                          f"contains it: the VT cannot draw an object inside "
+                                          f"itself", object_id=oid,
+                                          parent_id=self.parent_of(oid),
+                                          code=PoolErrorCode.ANY_OTHER)
+                    if nxt in self.objects:
+                        stack.append((nxt, drawn_parts(self, nxt)))
+                        on_path.add(nxt)
+                    continue
+                stack.pop()
+                on_path.discard(oid)
+                count = 1 + sum(drawn.get(part, 0) for part in drawn_parts(self, oid))
+                if count > MAX_DRAWN:
+                    obj = self.objects[oid]
+                    raise VtPoolError(f"{obj.type.name.lower()} draws {count} objects (each "
+                                      f"showing counted), more than the VT's {MAX_DRAWN}",
+                                      object_id=oid, parent_id=self.parent_of(oid),
+                                      code=PoolErrorCode.ANY_OTHER)
+                drawn[oid] = count
 
     def _check_references(self, obj: VtObject) -> None:
         for item in LAYOUTS[obj.type]:
@@ -175,6 +223,27 @@ class ObjectPool:
                               f"{target.type.name.lower()}, which it may not",
                               object_id=obj.object_id, parent_id=self.parent_of(obj.object_id),
                               code=PoolErrorCode.ANY_OTHER)
+
+
+def drawn_parts(pool: ObjectPool, object_id: int) -> list[int]:
+    """The ids drawing ``object_id`` draws: its children, keys, list items and window
+    objects, an object pointer's value, an external object pointer's default object (each
+    as often as it is listed)."""
+    obj = pool.objects.get(object_id)
+    if obj is None:
+        return []
+    if obj.type == T.OBJECT_POINTER:
+        return [int(obj["value"])] if obj["value"] != NO_OBJECT else []
+    if obj.type == T.EXTERNAL_OBJECT_POINTER:
+        return [int(obj["default_object"])] if obj["default_object"] != NO_OBJECT else []
+    out: list[int] = []
+    for item in LAYOUTS[obj.type]:
+        if isinstance(item, Var) and item.name in _DRAWN_VIA:
+            if item.kind == VarKind.CHILDREN:
+                out.extend(child for child, _x, _y in obj.attrs[item.name])
+            elif item.kind == VarKind.REFS:
+                out.extend(ref for ref in obj.attrs[item.name] if ref != NO_OBJECT)
+    return out
 
 
 def _listed(obj: VtObject) -> Iterator[int]:

@@ -31,15 +31,17 @@ hooks (the renderer and the browser VT listen there).
 from __future__ import annotations
 
 import heapq
-import math
 import queue
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import ClassVar
 
 from hil.isobus.name import IsobusName
 from hil.isobus.network import IsobusNetwork
-from hil.isobus.port import GLOBAL_ADDRESS, IsobusPort, Received
+from hil.isobus.port import GLOBAL_ADDRESS, NULL_ADDRESS, IsobusPort, Received
+from hil.isobus.tc.limiter import RateLimiter
+from hil.isobus.vt.bounded import BoundedLog
 from hil.isobus.vt.codec import VtObject
 from hil.isobus.vt.commands import apply, is_enabled
 from hil.isobus.vt.errors import NO_OBJECT, EndOfPoolError, PoolErrorCode, VtPoolError
@@ -59,7 +61,7 @@ from hil.isobus.vt.messages import (
     u32,
 )
 from hil.isobus.vt.pool import ObjectPool
-from hil.isobus.vt.store import ClientKey, VersionStore
+from hil.isobus.vt.store import ClientKey, StoreError, StoreFull, StoreLimits, VersionStore
 from hil.isobus.vt.workingset import INPUTS, WorkingSet
 
 T = ObjectType
@@ -75,6 +77,17 @@ KEY_REPEAT_S = 0.2
 PRIORITY = 5
 REQUEST_PGN = 0xEA00
 ADDRESS_CLAIMED_PGN = 0xEE00
+UNSOLICITED_PERIOD_S = 1.0
+"""Messages from an address the VT serves no working set for: one logged (and its claim asked
+for) per address and period, the rest counted."""
+EVENTS_KEPT = 2_000
+"""Events kept in memory (the first quarter and the latest; :class:`BoundedLog`)."""
+COMMANDS_KEPT = 5_000
+"""Command records kept in memory (:attr:`VirtualTerminalServer.counts` has them all)."""
+RESPONSES_KEPT = 1_000
+"""Working set responses kept in memory."""
+ACTIVATIONS_KEPT = 256
+"""Pool activations kept in memory."""
 
 
 @dataclass(frozen=True)
@@ -97,6 +110,12 @@ class VtOptions:
     small_fonts, large_fonts, font_styles : int
         The get text font data bit fields (all sizes; normal style only: the rig draws no
         bold, italic or flashing text).
+    store_max_bytes, store_max_versions, store_max_versions_per_name : int
+        What the version store keeps at most (:class:`~hil.isobus.vt.store.StoreLimits`): a
+        store version beyond them is answered "insufficient memory" (error bit 2).
+
+    ``memory_bytes`` is the VT's whole pool memory: the working sets connected at once share
+    it (get memory answers with what the others leave free).
     """
 
     version: int = 4
@@ -110,6 +129,15 @@ class VtOptions:
     small_fonts: int = 0xFF
     large_fonts: int = 0x7F
     font_styles: int = 0x00
+    store_max_bytes: int = StoreLimits.max_bytes
+    store_max_versions: int = StoreLimits.max_versions
+    store_max_versions_per_name: int = StoreLimits.max_versions_per_name
+
+    @property
+    def store_limits(self) -> StoreLimits:
+        """The version store's bounds."""
+        return StoreLimits(self.store_max_bytes, self.store_max_versions,
+                           self.store_max_versions_per_name)
 
     def __post_init__(self) -> None:
         if self.version not in (3, 4, 5, 6):
@@ -119,6 +147,7 @@ class VtOptions:
                              f"standard's smallest VT)")
         if self.memory_bytes <= 0:
             raise ValueError(f"VT memory of {self.memory_bytes} bytes")
+        self.store_limits    # noqa: B018  (checks the bounds)
 
 
 @dataclass(frozen=True)
@@ -190,12 +219,16 @@ class VirtualTerminalServer:
         self.options = options or VtOptions()
         self.store = store if store is not None else VersionStore()
         self.sessions: dict[int, WorkingSet] = {}
-        self.events: list[VtEvent] = []
-        self.commands: list[VtCommandRecord] = []
+        #: connection events (the first and the latest :data:`EVENTS_KEPT`)
+        self.events: BoundedLog[VtEvent] = BoundedLog(EVENTS_KEPT)
+        self.commands: BoundedLog[VtCommandRecord] = BoundedLog(COMMANDS_KEPT)
         #: (time, address, data) of the working sets' responses to the VT's own messages
-        self.responses: list[tuple[float, int, bytes]] = []
-        #: every pool that became active, in order (kept when its working set leaves)
-        self.activations: list[PoolActivation] = []
+        self.responses: BoundedLog[tuple[float, int, bytes]] = BoundedLog(RESPONSES_KEPT)
+        #: the pools that became active, in order (kept when their working set leaves)
+        self.activations: BoundedLog[PoolActivation] = BoundedLog(ACTIVATIONS_KEPT)
+        #: everything counted, kept in memory or not: ``events``, ``commands``,
+        #: ``command errors``, ``responses``, ``rejected``, and events by ``event <kind>``
+        self.counts: Counter[str] = Counter()
         self.on_change: list[ChangeHook] = []
         self.last_function = 0xFF
         self._next_status_s: float | None = None
@@ -206,16 +239,23 @@ class VirtualTerminalServer:
         #: actions posted from other threads (the browser VT), run at the next tick
         self._inbox: queue.SimpleQueue[Callable[[float], None]] | None = None
         self._claims_requested = False
-        #: address -> when its claim was last asked for (a NAME the VT had not heard)
-        self._claim_asked: dict[int, float] = {}
+        #: messages from addresses without a working set: logged and answered at a bounded rate
+        self._unsolicited = RateLimiter(UNSOLICITED_PERIOD_S)
+        #: working sets whose transfers ran past the VT's memory (refused at end of pool)
+        self._overflowed: set[int] = set()
+        #: the address the VT held at its last look (to see it lost)
+        self._held: int | None = None
         port.subscribe(ECU_TO_VT_PGN, self._on_message)
         port.subscribe(WORKING_SET_MASTER_PGN, self._on_working_set_master)
+        port.subscribe(ADDRESS_CLAIMED_PGN, self._on_address_claim)
 
     # -- timers ----------------------------------------------------------------------------------
 
     def tick(self, now_s: float) -> None:
         """Advance to ``now_s``: status, working set timeouts, lock timeouts, operator timers."""
         self._now = now_s
+        self._watch_address(now_s)
+        self._report_unsolicited(now_s)
         if self._down(now_s) or self.port.address is None:
             return
         if self._inbox is not None:
@@ -227,7 +267,12 @@ class VirtualTerminalServer:
             self._claims_requested = True
             self._request_claims(GLOBAL_ADDRESS)
         while self._timers and self._timers[0].time_s <= now_s + 1e-9:
-            heapq.heappop(self._timers).action(now_s)
+            timer = heapq.heappop(self._timers)
+            try:
+                timer.action(now_s)
+            except Exception as exc:    # a drawing of a client's pool must not end the VT
+                self._event(now_s, None, "error", f"a timed action raised "
+                            f"{type(exc).__name__}: {exc}")
         if self._next_status_s is None or now_s >= self._next_status_s - 1e-9:
             self._send_status()
             if self._next_status_s is None:
@@ -236,10 +281,8 @@ class VirtualTerminalServer:
                 self._next_status_s += STATUS_PERIOD_S
         for address, ws in list(self.sessions.items()):
             if now_s - ws.last_seen_s >= WORKING_SET_TIMEOUT_S - 1e-9:
-                del self.sessions[address]
-                self._event(now_s, address, "timed out",
-                            f"no working set maintenance for {now_s - ws.last_seen_s:.1f} s")
-                self._changed(ws, now_s, "working set gone")
+                self._end(ws, now_s, "timed out",
+                          f"no working set maintenance for {now_s - ws.last_seen_s:.1f} s")
                 continue
             if ws.lock_until_s is not None and now_s >= ws.lock_until_s - 1e-9:
                 mask = ws.locked_mask
@@ -250,12 +293,16 @@ class VirtualTerminalServer:
 
     def next_due(self, now_s: float) -> float:
         """When the VT has something to do."""
+        if self.port.address != self._held:
+            return now_s                  # the address changed: say so
+        limiter = self._unsolicited.due()
         if self.port.address is None:
-            return math.inf
+            return max(now_s, limiter)
         if self._down(now_s):
             assert self._down_until_s is not None
-            return self._down_until_s
+            return max(now_s, min(self._down_until_s, limiter))
         due = now_s if self._next_status_s is None else self._next_status_s
+        due = min(due, limiter)
         if self._timers:
             due = min(due, self._timers[0].time_s)
         if self._inbox is not None:
@@ -284,6 +331,7 @@ class VirtualTerminalServer:
         for ws in list(self.sessions.values()):
             self._changed(ws, now_s, "VT restarted")
         self.sessions.clear()
+        self._overflowed.clear()
         self._next_status_s = None
         self._timers.clear()
         self._claims_requested = False
@@ -317,11 +365,93 @@ class VirtualTerminalServer:
         self.port.send(VT_TO_ECU_PGN, data, address, PRIORITY)
 
     def _event(self, time_s: float, address: int | None, kind: str, detail: str = "") -> None:
+        self.counts["events"] += 1
+        self.counts[f"event {kind}"] += 1
         self.events.append(VtEvent(time_s, address, kind, detail))
 
-    def _changed(self, ws: WorkingSet, time_s: float, reason: str) -> None:
+    def _changed(self, ws: WorkingSet, time_s: float, reason: str, *,
+                 quiet: bool = False) -> None:
         for hook in list(self.on_change):
-            hook(ws, time_s, reason)
+            try:
+                hook(ws, time_s, reason)
+            except Exception as exc:    # drawing a client's pool must not end the VT
+                if not quiet:
+                    self._client_error(ws, time_s, exc, "drawing its screen")
+
+    def _client_error(self, ws: WorkingSet, time_s: float, exc: Exception, doing: str) -> None:
+        """An exception a working set's input raised: its working set ends, the VT goes on."""
+        detail = f"{doing}: {type(exc).__name__}: {exc}"
+        if self.sessions.get(ws.address) is ws:
+            self._end(ws, time_s, "client error", detail)
+        else:
+            self._event(time_s, ws.address, "client error", detail)
+
+    def _end(self, ws: WorkingSet, time_s: float, kind: str, detail: str) -> None:
+        """End a working set: its pool leaves the VT's volatile memory (stored versions stay)."""
+        if self.sessions.get(ws.address) is ws:
+            del self.sessions[ws.address]
+        self._overflowed.discard(ws.address)
+        ws.transfers.clear()
+        self._event(time_s, ws.address, kind, detail)
+        # a working set ended for an error is not reported again if its drawing fails again
+        self._changed(ws, time_s, "working set gone", quiet=kind == "client error")
+
+    def _reject(self, time_s: float, address: int, detail: str) -> None:
+        """A message from an address the VT serves no working set for: logged, and its claim
+        asked for, once per address and period; the rest counted."""
+        self.counts["rejected"] += 1
+        if address in (GLOBAL_ADDRESS, NULL_ADDRESS) or \
+                not self._unsolicited.offer(address, time_s):
+            return
+        self._event(time_s, address, "rejected message", detail)
+        self._request_claims(address)
+
+    def _report_unsolicited(self, now_s: float) -> None:
+        for address, count, since in self._unsolicited.ended(now_s):
+            self._event(now_s, address, "rejected message",
+                        f"{count} more message{'s' if count != 1 else ''} since {since:.2f} s "
+                        f"(counted, not logged one by one)")
+
+    def _on_address_claim(self, msg: Received) -> None:
+        """A claim on the bus: a working set whose address changed hands, or whose NAME moved
+        (or could not claim), ends; every one ends when the VT lost its own address."""
+        if len(msg.data) != 8:
+            return
+        claimant = int.from_bytes(msg.data, "little")
+        holder = self.port.name_of(msg.source) if msg.source != NULL_ADDRESS else None
+        for ws in list(self.sessions.values()):
+            if ws.address == msg.source and holder != ws.name:
+                self._end(ws, msg.time_s, "session ended",
+                          f"NAME {claimant:016X} claimed 0x{msg.source:02X}, the address of "
+                          f"NAME {ws.name or 0:016X}: the working set was that NAME's")
+            elif ws.name == claimant and ws.address != msg.source:
+                where = ("could not claim an address" if msg.source == NULL_ADDRESS
+                         else f"moved to 0x{msg.source:02X}")
+                self._end(ws, msg.time_s, "session ended",
+                          f"the working set's NAME {claimant:016X} {where}")
+        self._watch_address(msg.time_s, claimant if msg.source == self._held else None)
+
+    def _watch_address(self, now_s: float, claimant: int | None = None) -> None:
+        """Say when the VT lost its address (a lower NAME claimed it: the VT yields, as ISO
+        11783-5 says, and its working sets end) or holds one again."""
+        address = self.port.address
+        if address == self._held:
+            return
+        if self._held is not None:
+            for ws in list(self.sessions.values()):
+                self._end(ws, now_s, "session ended",
+                          f"the VT no longer holds its address 0x{self._held:02X}")
+            self._event(now_s, None, "address lost",
+                        f"the VT lost 0x{self._held:02X}"
+                        + (f" to NAME {claimant:016X} (a lower NAME wins, ISO 11783-5)"
+                           if claimant is not None else "")
+                        + ("; it holds no address (its NAME is not self-configurable)"
+                           if address is None else f"; it holds 0x{address:02X}"))
+            self._next_status_s = None
+            self._claims_requested = False
+        elif address is not None and self.counts["event address lost"]:
+            self._event(now_s, None, "address claimed", f"the VT holds 0x{address:02X}")
+        self._held = address
 
     def _key(self, address: int) -> tuple[ClientKey, int | None]:
         name = self.port.name_of(address)
@@ -331,22 +461,21 @@ class VirtualTerminalServer:
         self.port.send(REQUEST_PGN, ADDRESS_CLAIMED_PGN.to_bytes(3, "little"), destination,
                        PRIORITY + 1)
 
-    def _session(self, address: int, time_s: float, why: str) -> WorkingSet:
+    def _session(self, address: int, time_s: float, why: str) -> WorkingSet | None:
+        """The working set at ``address``, started when the address's NAME is known; ``None``
+        (the message rejected, the address's claim asked for) when it is not: a working set
+        belongs to a NAME (ISO 11783-5: a control function claims before anything else)."""
         ws = self.sessions.get(address)
-        if ws is not None and ws.name is None:
-            key, name = self._key(address)      # its claim may have come since
-            if name is not None:
-                ws.key, ws.name = key, name
-        if ws is None:
-            key, name = self._key(address)
-            if name is None and time_s - self._claim_asked.get(address, -math.inf) >= 1.0:
-                self._claim_asked[address] = time_s
-                self._request_claims(address)
-            ws = WorkingSet(address, key, name, time_s, time_s)
-            self.sessions[address] = ws
-            self._event(time_s, address, "connected",
-                        (f"NAME {name:016X}" if name is not None else "NAME unknown")
-                        + f" ({why})")
+        if ws is not None:
+            return ws
+        key, name = self._key(address)
+        if name is None or address in (GLOBAL_ADDRESS, NULL_ADDRESS):
+            self._reject(time_s, address, f"{why} from an address whose claim the VT has not "
+                         f"heard: no working set; its claim is requested")
+            return None
+        ws = WorkingSet(address, key, name, time_s, time_s)
+        self.sessions[address] = ws
+        self._event(time_s, address, "connected", f"NAME {name:016X} ({why})")
         return ws
 
     # -- receiving -------------------------------------------------------------------------------
@@ -355,7 +484,9 @@ class VirtualTerminalServer:
         if self._down(msg.time_s) or msg.destination not in (GLOBAL_ADDRESS,
                                                              self.port.address):
             return
-        self._session(msg.source, msg.time_s, "working set master").last_seen_s = msg.time_s
+        ws = self._session(msg.source, msg.time_s, "working set master")
+        if ws is not None:
+            ws.last_seen_s = msg.time_s
 
     def _on_message(self, msg: Received) -> None:
         t = msg.time_s
@@ -367,12 +498,21 @@ class VirtualTerminalServer:
         if len(d) < 8 and function != Function.OBJECT_POOL_TRANSFER:
             d = pad(d)        # a single frame is 8 bytes: a shorter one is read as padded
         known = msg.source in self.sessions
-        ws = self._session(msg.source, t, f"function 0x{function:02X} first")
+        ws = self._session(msg.source, t, f"function 0x{function:02X}")
+        if ws is None:
+            return
         if not known and function != Function.WORKING_SET_MAINTENANCE:
             self._event(t, msg.source, "out of order",
                         f"function 0x{function:02X} before a working set master or "
                         f"maintenance message")
         ws.last_seen_s = t
+        try:
+            self._handle(ws, function, d, t)
+        except Exception as exc:    # no working set's input may end the VT (or the serve)
+            self._client_error(ws, t, exc, f"function 0x{function:02X}")
+
+    def _handle(self, ws: WorkingSet, function: int, d: bytes, t: float) -> None:
+        """One message of a working set the VT serves."""
         if function == Function.WORKING_SET_MAINTENANCE:
             if ws.maintenance_s is None or d[1] & 0x01:
                 ws.version = d[2] if len(d) > 2 and d[2] != 0xFF else None
@@ -381,7 +521,8 @@ class VirtualTerminalServer:
         if function in _RESPONSES:
             # the working set's response to a message the VT sent (a soft key or button
             # activation, a numeric or string value the operator entered): kept, not answered
-            self.responses.append((t, ws.address, bytes(d)))
+            self.counts["responses"] += 1
+            self.responses.append((t, ws.address, bytes(d)[:64]))
             return
         self.last_function = function
         handler = self._STATELESS.get(function)
@@ -404,6 +545,9 @@ class VirtualTerminalServer:
 
     def _record(self, ws: WorkingSet, t: float, function: int, object_id: int, error: int,
                 detail: str) -> None:
+        self.counts["commands"] += 1
+        if error:
+            self.counts["command errors"] += 1
         self.commands.append(VtCommandRecord(t, ws.address, function, object_id, error,
                                              detail))
 
@@ -422,13 +566,22 @@ class VirtualTerminalServer:
 
     # -- the connection procedure ---------------------------------------------------------------
 
+    def _used(self, ws: WorkingSet) -> int:
+        """Pool bytes a working set holds (its pool and the transfers since)."""
+        return (ws.pool.size if ws.pool is not None else 0) + sum(len(x) for x in ws.transfers)
+
+    def _free_for(self, ws: WorkingSet) -> int:
+        """The VT memory the other working sets leave ``ws``."""
+        return self.options.memory_bytes - sum(self._used(o) for o in self.sessions.values()
+                                               if o is not ws)
+
     def _get_memory(self, ws: WorkingSet, d: bytes, t: float) -> None:
         needed = get32(d, 2)
         ws.memory_asked_s = t
-        enough = needed <= self.options.memory_bytes
+        room = self._free_for(ws)
+        enough = needed <= room
         self._event(t, ws.address, "memory", f"{needed} bytes: "
-                    f"{'enough' if enough else 'not enough'} "
-                    f"(room for {self.options.memory_bytes})")
+                    f"{'enough' if enough else 'not enough'} (room for {room})")
         self._send(ws.address, pad([Function.GET_MEMORY, self.options.version,
                                     0 if enough else 1]))
 
@@ -476,8 +629,17 @@ class VirtualTerminalServer:
         if ws.pool is None or len(label) not in (LABEL_LENGTH, EXTENDED_LABEL_LENGTH):
             error = 0x08 if ws.pool is None else 0x02
         else:
-            self.store.store(ws.key, label, ws.pool.raw)
-            ws.stored_labels.append(label)
+            try:
+                self.store.store(ws.key, label, ws.pool.raw, self.options.store_limits)
+            except StoreFull as exc:
+                error = 0x04      # insufficient memory available
+                self._event(t, ws.address, "store refused", f"version {_show(label)}: {exc}")
+            except StoreError as exc:
+                error = 0x08      # any other error
+                self._event(t, ws.address, "store refused", f"version {_show(label)}: {exc}")
+        if not error and ws.pool is not None:
+            if label not in ws.stored_labels:
+                ws.stored_labels.append(label)
             for activation in reversed(self.activations):
                 if activation.address == ws.address:
                     activation.version_label = _text(label)
@@ -493,6 +655,11 @@ class VirtualTerminalServer:
         if transfers is None:
             error = 0x02
             self._event(t, ws.address, "load refused", f"no version {_show(label)}")
+        elif sum(len(x) for x in transfers) > self._free_for(ws):
+            error = 0x04      # insufficient memory available
+            self._event(t, ws.address, "load refused", f"version {_show(label)}: "
+                        f"{sum(len(x) for x in transfers)} bytes, room for "
+                        f"{self._free_for(ws)}")
         else:
             version = min(ws.version or self.options.version, self.options.version)
             try:
@@ -509,15 +676,31 @@ class VirtualTerminalServer:
 
     def _delete_version(self, ws: WorkingSet, d: bytes, t: float) -> None:
         label = self._label(d)
-        found = self.store.delete(ws.key, label)
-        self._event(t, ws.address, "deleted", f"version {_show(label)}"
-                    + ("" if found else ": not stored"))
-        self._send(ws.address, pad([d[0], 0xFF, 0xFF, 0xFF, 0xFF, 0 if found else 0x02]))
+        try:
+            found = self.store.delete(ws.key, label)
+            error = 0 if found else 0x02
+            detail = "" if found else ": not stored"
+        except StoreError as exc:
+            error, detail = 0x08, f": {exc}"    # any other error
+        self._event(t, ws.address, "deleted", f"version {_show(label)}{detail}")
+        self._send(ws.address, pad([d[0], 0xFF, 0xFF, 0xFF, 0xFF, error]))
 
     def _transfer(self, ws: WorkingSet, d: bytes, t: float) -> None:
         if ws.memory_asked_s is None:
             self._event(t, ws.address, "out of order",
                         "object pool transfer before get memory")
+        if ws.address in self._overflowed:
+            return                 # out of memory already: refused at end of object pool
+        room = self._free_for(ws)
+        if self._used(ws) + len(d) - 1 > room:
+            # the VT runs out of memory during the transfer: nothing more is kept, and the
+            # end of object pool says so
+            self._overflowed.add(ws.address)
+            self._event(t, ws.address, "out of memory",
+                        f"transfer {len(ws.transfers) + 1} of {len(d) - 1} bytes: room for "
+                        f"{room} (transfers until the end of object pool are dropped)")
+            ws.transfers.clear()
+            return
         ws.transfers.append(bytes(d[1:]))
         self._event(t, ws.address, "transferred",
                     f"{len(d) - 1} bytes ({sum(len(x) for x in ws.transfers)} in all, "
@@ -527,10 +710,11 @@ class VirtualTerminalServer:
         base = ws.pool.raw if ws.pool is not None else ()
         transfers = tuple(base) + tuple(ws.transfers)
         total = sum(len(x) for x in transfers)
-        if total > self.options.memory_bytes:
+        room = self._free_for(ws)
+        if total > room or ws.address in self._overflowed:
             ws.transfers.clear()
-            self._event(t, ws.address, "refused", f"out of memory: {total} bytes, room for "
-                        f"{self.options.memory_bytes}")
+            self._overflowed.discard(ws.address)
+            self._event(t, ws.address, "refused", f"out of memory: room for {room} bytes")
             self._send(ws.address, pad([Function.END_OF_OBJECT_POOL,
                                         int(EndOfPoolError.OUT_OF_MEMORY), 0xFF, 0xFF, 0xFF,
                                         0xFF, 0]))
