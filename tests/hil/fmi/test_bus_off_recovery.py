@@ -131,3 +131,36 @@ def test_the_probe_fmu_hears_bus_off_and_error_active_again(fmus: Path) -> None:
         assert record["delivered"]["status"] == 3     # active, bus off, active again
     finally:
         c.close()
+
+
+@pytest.mark.slow
+def test_the_busoff_rule_on_the_software_bus_takes_the_fmu_off_and_it_recovers(
+        fmus: Path) -> None:
+    """The probe on the software bus (its own thread), the ``busoff`` rule on its report: its
+    first report's error frame takes it bus off; the next SYNC brings it back, and the rule,
+    holding, drops its later reports without a word (they are confirmed: see the guide)."""
+    import time
+
+    from hil.dut.fmu import FmuDut
+    from tests.hil.fmi.test_bus_fmu import REPORT, SYNC, controller
+
+    c = controller(fmus)
+    with SoftwareBus(port=0) as sb:
+        dut = FmuDut(c, lambda: controller(fmus), fmu_file=c.fmu.path, level="bus")
+        rig = open_bus(sb.spec())
+        try:
+            dut.start(sb.spec())
+            sb.add_fault(FaultRule(FaultKind.BUSOFF, can_id=REPORT, mask=0x7FF))
+            for _ in range(5):
+                rig.send(SYNC)
+                time.sleep(0.1)
+            dut.check()
+            record = dut.controller.record()   # type: ignore[attr-defined]
+            assert record["bus_off"] == 1 and record["bus_errors"] == 1
+            assert record["bus_off_recoveries"] == 1 and record["status"] == "error active"
+            reports = [m for m in iter(lambda: rig.recv(0.05), None)
+                       if not m.is_error_frame and m.arbitration_id == REPORT]
+            assert reports == []                          # the rule holds them all off
+        finally:
+            rig.shutdown()
+            dut.stop()
