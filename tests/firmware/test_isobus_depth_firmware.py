@@ -216,3 +216,30 @@ def test_it_qualifies_on_the_depth_rig_isobus_suite(depth_isobus_bin: Path,
     zones = {m["conditions"]["zone"]: m["outcome"] for m in record["measurements"]
              if m["name"] == "isobus.depth.zone_error"}
     assert zones == {"30 mm": "pass", "35 mm": "pass", "40 mm": "pass"}
+
+
+@pytest.mark.slow
+def test_with_fallback_hold_it_fails_the_tc_loss_run(depth_isobus_bin: Path,
+                                                     tmp_path: Path) -> None:
+    """The C build's must-fail parameter on the rig: ``fallback = "hold"`` keeps the TC's depth
+    after the TC is lost, and the isobus suite's TC-loss run fails it on
+    ``isobus.depth.tc_loss.fallback_time`` (the profile above passes it: 4.7 s)."""
+    text = (ROOT / "dut_profiles" / PROFILE).read_text()
+    text = text.replace('name = "sowing-depth-fuzzy-pid-isobus-firmware"',
+                        'name = "sowing-depth-isobus-never-falls-back-firmware"')
+    text = text.replace('database = "plant_emulators', f'database = "{ROOT}/plant_emulators')
+    text = text.replace("kd0 = 0.0\n", 'kd0 = 0.0\nfallback = "hold"\n', 1)
+    assert 'fallback = "hold"' in text
+    profile = tmp_path / "sowing-depth-isobus-never-falls-back-firmware.toml"
+    profile.write_text(text)
+    out = tmp_path / "q"
+    proc = subprocess.run([sys.executable, "-m", "hil", "qualify", str(profile), "--bus",
+                           "softbus", "--out", str(out), "--quiet", "-k", "tc_loss"], cwd=ROOT,
+                          capture_output=True, text=True, timeout=1800)
+    record_path = out / "record.json"
+    assert record_path.exists(), proc.stdout[-2000:] + proc.stderr[-2000:]
+    record = json.loads(record_path.read_text())
+    outcomes = [m["outcome"] for m in record["measurements"]
+                if m["name"] == "isobus.depth.tc_loss.fallback_time"]
+    assert proc.returncode == 1 and record["verdict"] == "fail"
+    assert outcomes and set(outcomes) <= {"fail", "error"}, outcomes
