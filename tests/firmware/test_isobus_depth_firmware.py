@@ -7,8 +7,9 @@
 * the replay fails, naming the line, on a vector with one byte changed;
 * the program on the software bus claims its address and sends its status from it;
 * on the rig (slow): a depth ``[tractor]`` run in lockstep gives the same DUT frames from the
-  firmware on the software bus as from the Python mode in process, and the firmware qualifies
-  on the depth rig's isobus suite.
+  firmware on the software bus as from the Python mode in process, the firmware qualifies on
+  the depth rig's isobus suite, and with its must-fail parameter ``fallback = "hold"`` it fails
+  the suite's TC-loss run.
 """
 
 from __future__ import annotations
