@@ -106,6 +106,14 @@ class FmuDut(InProcessDut):
         self.fmu_file = fmu_file
         self.level = level
 
+    @property
+    def checkpointable(self) -> bool:
+        """Whether a fork of the rig's process holds all of this DUT's state.
+
+        Not with the FMU in its host: a prefix checkpoint would fork the rig without it.
+        """
+        return not hasattr(self.controller, "host_record")
+
     def _close(self) -> None:
         close = getattr(self.controller, "close", None)
         if close is not None:

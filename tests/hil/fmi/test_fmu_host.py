@@ -182,6 +182,7 @@ def test_isolation_none_runs_in_process_with_the_same_bus_log(tmp_path: Path) ->
         dut, _ = make_dut(profile, bus="inline", clock="lockstep")
         assert isinstance(dut, FmuDut)
         assert isinstance(dut.controller, HostedController) == (isolation == "process")
+        assert dut.checkpointable == (isolation == "none")
         out = tmp_path / isolation
         sc = dataclasses.replace(FertilizerRig.load_scenario("bench-step-23"), duration_s=3.0)
         result = run_scenario(FertilizerRig, sc, dut, RunOptions(
