@@ -118,13 +118,16 @@ class FieldRunMap:
         """The as-applied map: an RFC 7946 FeatureCollection in WGS84, one feature per row
         strip segment (at most :data:`CELL_LENGTH_M` long) with the rate laid on it.
 
-        :meth:`AsAppliedRecord.to_geojson`'s features, with ``row`` (1 = leftmost) added and
-        the rings wound as RFC 7946 says (exterior counter-clockwise)."""
+        :meth:`AsAppliedRecord.to_geojson`'s features, with ``row`` (1 = leftmost) added (and,
+        for a depth, ``depth_mm``, the same as ``rate``) and the rings wound as RFC 7946 says
+        (exterior counter-clockwise)."""
         if not self.applying[:-1].any():
             return {"type": "FeatureCollection", "features": []}
         data = self.as_applied.to_geojson(cell_length_m=CELL_LENGTH_M)
         for feature in data["features"]:
             feature["properties"]["row"] = int(feature["properties"]["section"]) + 1
+            if self.kind == "depth":
+                feature["properties"]["depth_mm"] = feature["properties"]["rate"]
             oriented = shapely.orient_polygons(shape(feature["geometry"]))
             feature["geometry"] = json.loads(json.dumps(mapping(oriented)))
         return data

@@ -136,6 +136,7 @@ def test_the_sown_depth_is_the_truth_per_zone_and_row(depth_run: Path) -> None:
     # the turns are not sown ground: no strip there
     data = m.geojson
     assert data["features"] and {f["properties"]["unit"] for f in data["features"]} == {"mm"}
+    assert all(f["properties"]["depth_mm"] == f["properties"]["rate"] for f in data["features"])
     frame = m.field.frame
     wx0, wy0, wx1, wy1 = m.field.work_area.bounds
     inner = box(wx0 - 2.0, wy0 + 1.0, wx1 + 2.0, wy1 - 1.0)
