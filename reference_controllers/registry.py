@@ -52,6 +52,15 @@ def _piecewise_isobus(params: dict[str, ParamValue], step_on_sync: bool) -> Cont
     return IsobusFlowController(mode, params, step_on_sync=step_on_sync)
 
 
+def _piecewise_isobus_vt(params: dict[str, ParamValue], step_on_sync: bool) -> Controller:
+    from reference_controllers.fertilizer.isobus_vt import IsobusVtFlowController
+
+    mode = str(params.pop("mode", "physical"))
+    if mode not in ("physical", "paper-literal"):
+        raise ParamError(f"parameter 'mode' must be physical or paper-literal, got {mode!r}")
+    return IsobusVtFlowController(mode, params, step_on_sync=step_on_sync)
+
+
 def _open_loop(params: dict[str, ParamValue], step_on_sync: bool) -> Controller:
     from reference_controllers.fertilizer.adapter import OpenLoopFlowController
 
@@ -95,6 +104,9 @@ CONTROLLERS: dict[str, ControllerKind] = {k.name: k for k in (
                    "paper-literal)", 0.1, _piecewise),
     ControllerKind("fertilizer-piecewise-pid-isobus", "[F] piecewise PID as an ISOBUS "
                    "implement (TC rate and sections, TECU speed)", 0.1, _piecewise_isobus),
+    ControllerKind("fertilizer-piecewise-pid-isobus-vt", "[F] piecewise PID as an ISOBUS "
+                   "implement with its operator interface on the tractor's VT", 0.1,
+                   _piecewise_isobus_vt),
     ControllerKind("fertilizer-open-loop", "[F] constant-speed baseline", 0.1, _open_loop),
     ControllerKind("fertilizer-rc400", "[F] piecewise PID on a foreign database (the RC-400 "
                    "of docs/examples/byo-fertilizer)", 0.1, _rc400),
