@@ -86,17 +86,9 @@ def _serve(args: argparse.Namespace) -> int:
     if say is not None:
         say(f"hil isobus serve: TECU 0x80, TC 0xF7 on {args.bus}; path "
             f"{field.path.duration_s:.0f} s after {args.drive_after:g} s; writing {args.out}/")
-    attached = None
-    if args.vt or args.vt_browser is not None:
-        from hil.isobus.vt.attach import attach_vt
-        attached = attach_vt(tractor.network, screens_dir=args.out / "vt",
-                             browser_port=args.vt_browser,
-                             console=lambda line: print(line, flush=True))
-    try:
-        result = serve(tractor, args.bus, args.out, duration_s=args.duration, console=say)
-    finally:
-        if attached is not None:
-            attached.close()
+    from hil.isobus.serve import ServeVt
+    vt = ServeVt(browser_port=args.vt_browser) if args.vt or args.vt_browser is not None else None
+    result = serve(tractor, args.bus, args.out, duration_s=args.duration, console=say, vt=vt)
     print(f"hil isobus serve: {result.run_time_s:.1f} s, {result.frames} frames, "
           f"{result.events} TC events, {result.values} values; DDOP "
           f"{'activated' if result.activated else 'never activated'}"
