@@ -20,7 +20,8 @@ control function, with the pool of :mod:`reference_controllers.fertilizer.operat
 The pool is stored on the VT under :data:`~reference_controllers.fertilizer.operator_pool.
 VERSION_LABEL`, so after a VT restart the controller loads it instead of uploading it.
 
-This is the Python build only; the C ISOBUS build has no VT client yet.
+The C ISOBUS build (``firmware/isobus``, ``--param vt=yes``) is its twin, frame for frame
+(``firmware/isobus/README.md``).
 
 :func:`fertilizer_piecewise_pid_isobus_vt` makes it for a DUT profile's ``launch.inprocess``
 (``dut_profiles/fertilizer-piecewise-pid-isobus-vt-daemon.toml``; the must-fail implements are
