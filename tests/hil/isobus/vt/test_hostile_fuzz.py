@@ -286,12 +286,13 @@ def test_memory_stays_bounded_under_a_flood_of_commands_stores_and_strangers(mon
 
 
 @pytest.mark.slow
-def test_memory_stays_bounded_under_30_s_of_flood() -> None:
-    growth, bench = _memory_growth(until_s=40.0, warm_s=10.0, trace_s=2.0)
-    assert bench.vt.counts["commands"] >= 37_000
-    assert bench.store.count <= 8
-    assert growth < 128 * 1024, f"{growth} bytes more after 30 s of flood"
-    check_vt(bench, 40.0)
+def test_memory_stays_bounded_under_20_s_of_flood(monkeypatch) -> None:
+    # the VT's own bounds but for its events (2,000 take ~40 s of this flood to fill)
+    monkeypatch.setattr(vt_server, "EVENTS_KEPT", 400)
+    growth, bench = _memory_growth(until_s=34.0, warm_s=14.0, trace_s=6.0)
+    assert bench.vt.counts["commands"] >= 31_000 and len(bench.vt.commands) <= 5_000
+    assert bench.store.count <= 8 and len(bench.vt.events) <= 400
+    assert growth < 128 * 1024, f"{growth} bytes more after 20 s of flood"
 
 
 def test_etp_transfers_cut_short_or_from_an_unclaimed_address_leave_no_trace() -> None:
