@@ -241,6 +241,8 @@ class VirtualTerminalServer:
         self._claims_requested = False
         #: messages from addresses without a working set: logged and answered at a bounded rate
         self._unsolicited = RateLimiter(UNSOLICITED_PERIOD_S)
+        #: commands before a pool: NACKed at the same bounded rate
+        self._early_commands = RateLimiter(UNSOLICITED_PERIOD_S)
         #: working sets whose transfers ran past the VT's memory (refused at end of pool)
         self._overflowed: set[int] = set()
         #: the address the VT held at its last look (to see it lost)
@@ -554,10 +556,16 @@ class VirtualTerminalServer:
     def _refuse(self, ws: WorkingSet, function: int, t: float, why: str,
                 unsupported: bool = False) -> None:
         """A function the VT does not have ("unsupported VT function", 0xFD, from version 5),
-        or a command it cannot carry out now: a negative acknowledgement (PGN 0xE800)."""
+        or a command it cannot carry out now: a negative acknowledgement (PGN 0xE800). Commands
+        before a pool are NACKed once per working set and second (the rest recorded and
+        counted in ``counts["nacks not sent"]``): a flood of them is not answered frame for
+        frame to everyone."""
         self._record(ws, t, function, NO_OBJECT, 0xFF, why)
         if unsupported and self.options.version >= 5:
             self._send(ws.address, pad([Function.UNSUPPORTED_FUNCTION, function]))
+            return
+        if not unsupported and not self._early_commands.offer(ws.address, t):
+            self.counts["nacks not sent"] += 1
             return
         pgn = ECU_TO_VT_PGN
         self.port.send(ACKNOWLEDGEMENT_PGN, bytes([0x01, 0xFF, 0xFF, 0xFF, ws.address,

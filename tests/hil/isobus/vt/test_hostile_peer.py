@@ -458,3 +458,20 @@ def test_commands_before_a_pool_are_refused_and_store_before_a_pool_is_any_other
     assert [d[5] for _, d in b.vt_frames(Function.LOAD_VERSION, PEER)] == [0x02]
     assert b.vt.sessions[PEER].pool is None
     check_vt(b, 3.0)
+
+
+def test_a_flood_of_commands_before_a_pool_is_nacked_at_a_bounded_rate() -> None:
+    # 300 commands before any pool, 100 a second: each recorded, a NACK to everyone at most
+    # once a second (it used to be one per frame)
+    groups = [(0.5, PEER, ECU_TO_VT_PGN, maintenance(True), VT_ADDRESS),
+              *[(1.0 + k * 0.01, PEER, ECU_TO_VT_PGN, change_numeric(1, k), VT_ADDRESS)
+                for k in range(300)],
+              *keep_alive(PEER, 1.0, 4.5)]
+    b = build(groups=groups, good=False)
+    b.wire.run_until(4.5)
+    nacks = [f for f in b.wire.frames if f.sender == 0
+             and (f.frame.arbitration_id >> 8) & 0x3FF00 == 0xE800 and f.frame.data[4] == PEER]
+    assert 3 <= len(nacks) <= 4
+    assert b.vt.counts["commands"] == 300
+    assert b.vt.counts["nacks not sent"] == 300 - len(nacks)
+    check_vt(b, 4.5, good_connects=False)
