@@ -137,6 +137,37 @@ _DEPTH_ZONE_ERROR_LIMIT_MM = 3.0
 #: isobus.depth.zone_pass_rate, from [D] Table 3: 91-93 % of the seeds in GB/T 20865's band on the
 #: field; the depth profiles' depth.field.pass_rate limit, 90 %, per zone of the map.
 _DEPTH_ZONE_PASS_RATE_LIMIT_PCT = 90.0
+#: isobus.depth.transition_distance, from [D] and ISO 11783-10: the TC sends the new depth ahead
+#: by the set-point latency the implement declares (DDI 142), which is meant to cover its
+#: response; what a declared latency can miss by is the response to a depth step, the rig's
+#: depth.step.response_time limit (3 s: [D]'s rod speed and the post-press roller's lag, three
+#: times over), either way: late (a slow response, a latency declared short) or early (a
+#: latency declared long). At the field run's 6 km/h: 3 s x 1.667 m/s = 5 m, the longer of how
+#: far before the boundary (under the seed line) the seed line's depth (the rows' mean, 0.5 m
+#: centred) left the old zone's 10 % band and how far after it the depth stays within 10 % of
+#: the new zone's for 2 m. (The reference: docs/guide/qualifying-an-isobus-implement.md.) A
+#: controller that never takes the new depth never gets there.
+_DEPTH_TRANSITION_LIMIT_M = 5.0
+#: isobus.depth.reported_error, from ISO 11783-11 and [D]: DDI 57 is the depth the implement
+#: sows, which the operator's terminal and the TC's as-applied record read. An implement can
+#: know it only through its own sensing, whose bias against the seeds no controller sees (the
+#: post-press roller on the clods, eq. 13's line, the inclinometer: 0.9-1.4 mm on average, up to
+#: 2.2 mm over 300 seeds of the reference, issue #16; the rig's 3 mm limit on it,
+#: depth.step.true_steady_state_error), plus half of DDI 57's 1 mm resolution: 3.5 mm between
+#: the zone's mean reported depth and the seeds' mean. An implement that reports its set-point
+#: says the zone's depth whatever it sows: with the rod jammed, 10 mm off in the 40 mm zone.
+_DEPTH_REPORTED_ERROR_LIMIT_MM = 3.5
+#: isobus.depth.tc_loss.fallback_time, from ISO 11783-10 and [D]: a client considers the TC lost
+#: after 6 s without its status; then the implement sows the default seeding depth its DDOP
+#: declares (DDI 58), a depth step, the rig's depth.step.response_time limit (3 s): 9 s from the
+#: TC's silence until the seed line's depth stays within 10 % of the default for 2 m. One that
+#: keeps the TC's last depth never gets there.
+_DEPTH_TC_LOSS_FALLBACK_LIMIT_S = 9.0
+#: isobus.depth.speed_loss.rod_travel: depth.fault.speed_loss.rod_travel's derivation (below,
+#: 2 mm): a standing machine lays no seed and changes no depth. Under the TC the planter stands
+#: at the end of the path; its speed is the GNSS receiver's and the TECU's, and once the TECU's
+#: is lost (ISO 11783-7: three missed 100 ms messages) a controller must not regulate on a speed
+#: it no longer knows: stopping, or a speed of its own, is right.
 
 
 #: flow.rows.applied_accuracy, from [F]: each row's mass laid while the terminal has it on, against
@@ -234,6 +265,65 @@ _SPEED_LOSS_OVERAPPLICATION_LIMIT_PCT = 10.0
 #: isobus.tc.restart.reconnect_time: from the TC's return to the pool active again, the same
 #: exchanges as at power-up without the address claim: the time_to_active limit.
 _RECONNECT_LIMIT_S = _TIME_TO_ACTIVE_LIMIT_S
+
+#: isobus.vt.connect.time_to_active, from ISO 11783-5, -3 and -6: what a VT client that answers
+#: every message within Tr (200 ms) needs from power-up to its pool active on the VT. Its
+#: address claim and the 250 ms after it; the VT's status, sent every 1 s, which it waits for
+#: (up to 1 s); one exchange each within Tr: get memory, number of soft keys, text font data,
+#: hardware, versions, end of object pool (6 x 0.2 s); and the transfer of a pool of up to
+#: 16 kB: by TP up to 1,785 bytes (255 packets in the VT's windows of 16, each answered within
+#: Tr: 16 x 0.2 s, the packets 0.14 s at 250 kbit/s), by ETP beyond (2,341 packets in windows
+#: of 255: 10 x 0.2 s, the packets 2,341 x 0.54 ms = 1.3 s): at most 3.34 s.
+#: 0.25 + 1 + 1.2 + 3.34 = 5.8 s -> 6 s. (The reference's 1,047-byte pool, by TP with the TC's
+#: DDOP on the bus at the same time: 4.2 s in lockstep.)
+_VT_TIME_TO_ACTIVE_LIMIT_S = 6.0
+
+#: isobus.vt.restart.reconnect_time, from ISO 11783-5 and -6: the VT back after a restart to the
+#: pool active again, loaded from the VT's storage: the VT's own address claim and 250 ms, its
+#: status (the client may bind at the second: 1 s), then get memory, number of soft keys, text
+#: font data, hardware, versions and load version, each within Tr (6 x 0.2 s):
+#: 0.25 + 1 + 1.2 = 2.45 s -> 2.5 s. An implement that uploads its pool again instead takes
+#: longer by the transfer, which isobus.vt.restart.uploaded_bytes judges on its own. (The
+#: reference: 0.9 s, loaded.)
+_VT_RECONNECT_LIMIT_S = 2.5
+
+#: isobus.vt.restart.uploaded_bytes, from ISO 11783-6: the VT kept the version the implement
+#: stored at its first connection (its get versions response lists it), so a second connection
+#: loads it; bytes of pool uploaded again after the VT's restart are a breach: limit 0.
+_VT_UPLOADED_AGAIN_LIMIT_BYTES = 0.0
+
+#: isobus.vt.before_master.delivered: an implement operated from a VT meters only once its
+#: operator has switched it on there (its master key): none of its controls exists before its
+#: pool is active. The limit is isobus.tc.loss.delivered's: what lands in one 0.1 s control
+#: period at the field runs' 200 kg/ha, 3 m, 6 km/h, 10 g.
+_VT_BEFORE_MASTER_LIMIT_G = _NO_TC_DELIVERY_LIMIT_G
+
+#: isobus.vt.master_off.stop_time, from ISO 11783-3 and the rig's physics: from the operator's
+#: release of the master key (the VT sends it at once) to the meters' flow under 5 % of what it
+#: was: Tr (0.2 s: the most an ISOBUS node may take to respond), the control step that sends
+#: the new command (0.1 s), the analog module's update at the next SYNC (0.1 s), the drive's
+#: ramp from the field's ~1,600 rpm to rest (0.08 s, rig.toml [motor] setpoint_ramp):
+#: 0.48 s -> 0.5 s. (The reference: 0.01 s in lockstep: it reports its sections off in the
+#: step that hears the key, and the rig's row clutches drop at once.)
+_VT_MASTER_OFF_LIMIT_S = 0.5
+
+#: isobus.vt.alarm.time_to_shown, from the rig's contract and ISO 11783-3: from a row's flow
+#: module falling silent to the implement's alarm mask on the VT. A report is usable for the
+#: contract's 2.5 s (its staleness, the reference's adapter), a row not back one report period
+#: of [F]'s block mode later (1 s) is lost, not late; then the commands that show it, one at a
+#: time: the alarm's text (more than 8 bytes: a TP transfer, RTS, CTS, the packets and the
+#: end-of-message acknowledgement, each within Tr: 0.8 s) and the change active mask (Tr,
+#: 0.2 s): 2.5 + 1 + 0.8 + 0.2 = 4.5 s -> 5 s. (The reference: 4.0 s in lockstep.)
+_VT_ALARM_LIMIT_S = 5.0
+
+#: isobus.vt.calibration.initial_error, from [F] and the rig's physics: with the lot's
+#: calibration test entered on the VT (grams per revolution at the test's shaft speed), the
+#: first metering is [F]'s step with a known lot: flow.lot.calibrated.overshoot's 5 % (the
+#: test's own error, ~0.7 % SD, is inside), judged as the true flow at the meters against the
+#: map's rate over 1.5 s from 0.2 s after Master on, before the flow modules' 1 s window can
+#: have corrected it. A controller that meters on its own map instead meters the lot's
+#: +8 %. (The reference: 0.9 %; the reference ignoring the entered test: 10.1 %.)
+_VT_CALIBRATION_LIMIT_PCT = _LOT_CALIBRATED_OVERSHOOT_LIMIT_PCT
 
 
 #: depth.step.true_steady_state_error, from [D] and the rig's physics. The true depth of a
@@ -593,6 +683,38 @@ _SPECS = (
                     "in % of what the map prescribed there",
                     high=_SPEED_LOSS_OVERAPPLICATION_LIMIT_PCT, conditions=(),
                     source=f"{_ISO}-7 + {_F} field budget"),
+    # ISOBUS implements operated from the tractor's Virtual Terminal (issue 39; test_vt.py)
+    MeasurementSpec("isobus.vt.connect.time_to_active", "s", "fertilizer",
+                    "power-up to the implement's object pool active on the rig's VT",
+                    high=_VT_TIME_TO_ACTIVE_LIMIT_S, conditions=(),
+                    source=f"{_ISO}-3, -5, -6"),
+    MeasurementSpec("isobus.vt.before_master.delivered", "g", "fertilizer",
+                    "fertilizer laid before the operator switched the implement on at the VT "
+                    "(its master key), plus the transport",
+                    high=_VT_BEFORE_MASTER_LIMIT_G, conditions=(),
+                    source=f"{_ISO}-6 + {_F} eq. 1"),
+    MeasurementSpec("isobus.vt.master_off.stop_time", "s", "fertilizer",
+                    "the operator's release of the master key (off) to the meters' true flow "
+                    "under 5 % of what it was", high=_VT_MASTER_OFF_LIMIT_S, conditions=(),
+                    source=f"{_ISO}-3 + the rig's drive"),
+    MeasurementSpec("isobus.vt.alarm.time_to_shown", "s", "fertilizer",
+                    "a row's flow module falling silent to an alarm mask on the VT",
+                    high=_VT_ALARM_LIMIT_S, conditions=(),
+                    source=f"the rig's contract + {_F} + {_ISO}-3"),
+    MeasurementSpec("isobus.vt.restart.reconnect_time", "s", "fertilizer",
+                    "the VT back after a restart mid-field to the implement's pool active again",
+                    high=_VT_RECONNECT_LIMIT_S, conditions=(),
+                    source=f"{_ISO}-5, -6"),
+    MeasurementSpec("isobus.vt.restart.uploaded_bytes", "bytes", "fertilizer",
+                    "bytes of object pool uploaded again after the VT's restart (its storage "
+                    "kept the version the implement stored)",
+                    high=_VT_UPLOADED_AGAIN_LIMIT_BYTES, conditions=(),
+                    source=f"{_ISO}-6"),
+    MeasurementSpec("isobus.vt.calibration.initial_error", "%", "fertilizer",
+                    "|true flow at the meters / the map's - 1| over the first 1.5 s of "
+                    "metering after the lot's calibration was entered on the VT",
+                    high=_VT_CALIBRATION_LIMIT_PCT, conditions=(),
+                    source=f"{_F} step overshoot + the rig's lot"),
     MeasurementSpec("isobus.depth.zone_error", "mm", "sowing_depth",
                     "per zone of a seeding-depth map (DDI 56 from the TC): |mean true seed "
                     "depth - the zone's depth| on the passes, away from the zone boundaries",
@@ -602,6 +724,28 @@ _SPECS = (
                     "per zone of the map: seeds within the zone depth's GB/T 20865 band, on "
                     "the same cells", low=_DEPTH_ZONE_PASS_RATE_LIMIT_PCT, conditions=("zone",),
                     source="[D] Table 3 + GB/T 20865"),
+    MeasurementSpec("isobus.depth.transition_distance", "m", "sowing_depth",
+                    "at a zone boundary the seed line crosses on a pass, the longer of how far "
+                    "before it the true depth (the rows' mean) left the old zone's 10 % band and "
+                    "how far after it the depth stays within 10 % of the new zone's for 2 m "
+                    "(worst boundary of the run)", high=_DEPTH_TRANSITION_LIMIT_M,
+                    conditions=(), source=f"{_D} + {_ISO}-10"),
+    MeasurementSpec("isobus.depth.reported_error", "mm", "sowing_depth",
+                    "per zone of the map and scenario: |mean actual seeding depth the "
+                    "implement reported (DDI 57) - mean true depth| on the passes, away from "
+                    "the zone boundaries", high=_DEPTH_REPORTED_ERROR_LIMIT_MM,
+                    conditions=("scenario", "zone"),
+                    source=f"{_ISO}-11 DDI 57 + {_D} (sensing bias)"),
+    MeasurementSpec("isobus.depth.tc_loss.fallback_time", "s", "sowing_depth",
+                    "from the TC falling silent until the true depth stays within 10 % of the "
+                    "default seeding depth the implement's DDOP declares (DDI 58) for 2 m",
+                    high=_DEPTH_TC_LOSS_FALLBACK_LIMIT_S, conditions=(),
+                    source=f"{_ISO}-10 + {_D} rod speed"),
+    MeasurementSpec("isobus.depth.speed_loss.rod_travel", "mm", "sowing_depth",
+                    "rod travel while the tractor stands after it drove: the TECU's speed "
+                    "lost (isobus-depth-speed-loss) or reporting 0 (isobus-depth-field); "
+                    "condition scenario", high=_STANDSTILL_ROD_TRAVEL_LIMIT_MM,
+                    conditions=("scenario",), source=f"{_D} Table 3 + {_ISO}-7"),
     # ISOBUS bus conformance of an ISOBUS DUT, every run (hil/conformance/isobus.py)
     MeasurementSpec("isobus.claim.frames_before", "frames", "*",
                     "frames the DUT sent from an address before claiming it or within the "
@@ -623,6 +767,12 @@ _SPECS = (
                     "median period of a cyclic PGN the DUT sends, off its standard period",
                     default_rule=">= -10, <= 10 (% of the period ISO 11783 gives), per PGN",
                     source=f"{_ISO}"),
+    MeasurementSpec("isobus.vt_client.violations", "findings", "*",
+                    "VT-client breaches of the DUT when the run had a VT (ISO 11783-6), by "
+                    "kind: working set maintenance late (> 1.5 s apart while the VT was up), "
+                    "pool transfer before get memory, two transfers to the VT at once",
+                    default_rule="<= 0, per kind",
+                    source=f"{_ISO}-6"),
     # both rigs
     MeasurementSpec("rig.timing.lateness_p99", "us", "*",
                     "99th percentile of the rig's period lateness (real time only)",
@@ -690,7 +840,8 @@ BUILT_IN: frozenset[str] = frozenset(MEASUREMENTS)
 
 #: the bus conformance checks, recorded for every run (CANopen and ISOBUS); the rest are the
 #: suites' control measurements
-CONFORMANCE_PREFIXES = ("bus.", "isobus.claim.", "isobus.transport.", "isobus.pgn.")
+CONFORMANCE_PREFIXES = ("bus.", "isobus.claim.", "isobus.transport.", "isobus.pgn.",
+                        "isobus.vt_client.")
 
 
 def is_conformance(name: str) -> bool:
