@@ -212,8 +212,9 @@ def vt_record(vt: VirtualTerminalServer, recorder: ScreenRecorder | None = None,
         "vt_version": vt.options.version, "data_mask_px": vt.options.data_mask_px,
         "working_sets": sets,
         "events": [asdict(e) for e in vt.events],
-        "commands": len(vt.commands),
-        "command_errors": sum(1 for c in vt.commands if c.error),
+        "commands": vt.counts["commands"],
+        "command_errors": vt.counts["command errors"],
+        "events_omitted": vt.events.omitted,
     }
     if recorder is not None:
         out["screens"] = [asdict(s) for s in recorder.screens]

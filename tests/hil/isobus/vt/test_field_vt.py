@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -167,8 +168,9 @@ def test_vt_down_needs_the_tractors_vt() -> None:
 
     assert "vt_down" in FIELD_FAULTS and "vt_down" in FertilizerRig.faults
     scenario = load_scenario(SCENARIOS / "isobus-tc-restart.toml")
-    assert scenario.tractor is not None and not scenario.tractor.vt
-    run = FieldRun(scenario.tractor, BoomGeometry(3.0, 4, -1.0))
+    assert scenario.tractor is not None
+    tractor = replace(scenario.tractor, vt=False, operator=())   # a tractor without a VT
+    run = FieldRun(tractor, BoomGeometry(3.0, 4, -1.0))
     assert run.vt is None and "vt" not in run.truth()
     with pytest.raises(ConfigError, match=r"vt = true"):
         run.set_fault("vt_down", True, 1.0)
