@@ -51,7 +51,8 @@ DEFAULT_SUITES = "fast,robustness"
 DEFAULT_ISOBUS_SUITES = "isobus"
 EXIT_BY_VERDICT = {"pass": 0, "fail": 1, "interrupted": 130}
 #: what a qualification writes into --out (moved in from the staging directory, record last)
-OUTPUTS = ("runs", "junit.xml", "report.html")
+OUTPUTS = ("runs", "junit.xml", "report.html",
+           "as-applied-*.geojson")   # a field run's as-applied map, beside the report
 STAGING_PREFIX = ".qualify-"
 SCHEMA = "agrihil.qualification/1"
 

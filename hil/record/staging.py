@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import glob
 import os
 import shutil
 import signal
@@ -93,7 +94,8 @@ class Staging:
         The staging directory's name prefix (``.qualify-``, ``.campaign-``); followed by the
         process id, so a later command can tell a dead command's staging from a live one's.
     outputs : sequence of str, or None
-        The files and directories the command writes besides the record, moved in first;
+        The files and directories the command writes besides the record, moved in first (a
+        name may hold wildcards: ``as-applied-*.geojson``);
         None: whatever the command staged (``hil run``: the run's directory holds only the
         run's files, whose names depend on the DUT).
     record : str
@@ -181,7 +183,11 @@ class Staging:
 
     def _staged_outputs(self) -> tuple[str, ...]:
         if self.outputs is not None:
-            return self.outputs
+            # a name with a wildcard (``as-applied-*.geojson``) stands for what it matches
+            return tuple(dict.fromkeys(
+                found for name in self.outputs
+                for found in ((name,) if not glob.has_magic(name) else
+                              sorted(q.name for q in self.path.glob(name)))))
         return tuple(sorted(p.name for p in self.path.iterdir()
                             if p.name != self.record and not p.name.startswith(".")))
 

@@ -37,6 +37,24 @@ def test_promote_replaces_the_outputs_record_last_and_keeps_the_previous(tmp_pat
     assert not staging.path.exists()
 
 
+def test_a_wildcard_output_moves_what_it_matches(tmp_path: Path) -> None:
+    """``hil qualify``'s as-applied maps (``as-applied-*.geojson``, named by their run) reach
+    ``out`` beside the report that links them; other staged files do not."""
+    out = tmp_path / "out"
+    out.mkdir()
+    staging = Staging(out, prefix=".test-", outputs=("report.html", "as-applied-*.geojson"),
+                      record="r.json")
+    staging.begin({"status": "running"})
+    for name in ("report.html", "as-applied-runs-test_a.geojson",
+                 "as-applied-runs-test_b.geojson", "scratch.txt"):
+        (staging.path / name).write_text(name)
+    (staging.path / "r.json").write_text("{}")
+    staging.promote()
+    assert sorted(p.name for p in out.iterdir() if p.name != "r.previous.json") == [
+        "as-applied-runs-test_a.geojson", "as-applied-runs-test_b.geojson", "r.json",
+        "report.html"]
+
+
 def test_a_failed_write_names_out_and_removes_the_staging(tmp_path: Path) -> None:
     staging = _staging(tmp_path / "out")
     staging.begin(None)
