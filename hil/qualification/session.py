@@ -26,6 +26,7 @@ import pytest
 from hil.dut.factory import make_dut, profile_run_options
 from hil.dut.physical import RESTART_SKIP_REASON, PhysicalDutSetupError
 from hil.dut.profile import DutProfile
+from hil.isobus.vt.steps import OperatorScriptError
 from hil.measurements import Measurement
 from hil.qualification.conformance_runs import judge_conformance
 from hil.qualification.console import REPORT_ERROR
@@ -187,8 +188,9 @@ class QualificationSession:
                 **wiring,
                 extra_meta={"dut_identity": profile.identity(), "dut_build": build,
                             "test": nodeid}))
-        except (PhysicalDutSetupError, CommandIdsError) as exc:
-            # not a verdict on the ECU: the qualification stops as a setup error (exit 2)
+        except (PhysicalDutSetupError, CommandIdsError, OperatorScriptError) as exc:
+            # not a verdict on the ECU (nor a scenario's operator script naming an object the
+            # implement's pool lacks): the qualification stops as a setup error (exit 2)
             self.setup_error = str(exc)
             pytest.exit(f"setup error: {exc}", returncode=2)
         self.run_cache.add(key, RunEntry(result, rel, scenario.name))

@@ -36,7 +36,7 @@ from hil.isobus.vt.layouts import ObjectType
 from hil.isobus.vt.operator import Operator, check_steps
 from hil.isobus.vt.screens import ScreenRecorder, vt_record
 from hil.isobus.vt.server import VirtualTerminalServer, VtOptions, add_vt
-from hil.isobus.vt.steps import OperatorStep
+from hil.isobus.vt.steps import OperatorScriptError, OperatorStep
 from hil.isobus.vt.workingset import WorkingSet
 
 __all__ = ["SCREEN_INTERVAL_S", "FieldVt", "alarm_masks"]
@@ -86,7 +86,7 @@ class FieldVt:
                 try:
                     check_steps(self.steps, ws.pool)
                 except ConfigError as exc:
-                    self.problem = ConfigError(
+                    self.problem = OperatorScriptError(
                         f"{exc} (the implement's pool at 0x{ws.address:02X}, active at "
                         f"{time_s:g} s)")
         gone = reason in ("VT restarted", "working set gone")

@@ -13,7 +13,13 @@ from dataclasses import dataclass
 
 from hil.errors import ConfigError
 
-__all__ = ["OperatorStep"]
+__all__ = ["OperatorScriptError", "OperatorStep"]
+
+
+class OperatorScriptError(ConfigError):
+    """An ``[[operator]]`` step names an object the implement's pool does not have: a setup
+    error of the scenario (``hil run`` and ``hil qualify`` exit 2), found once the pool is
+    active."""
 
 
 @dataclass(frozen=True)

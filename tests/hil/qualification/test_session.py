@@ -86,3 +86,25 @@ def test_the_plugin_is_a_thin_layer_over_the_package() -> None:
     assert QualificationSession.__module__ == "hil.qualification.session"
     assert plugin.SUITES == ("fast", "full", "robustness", "busload", "isobus")
     assert plugin.SCHEMA == "agrihil.qualification/1"
+
+
+def test_an_operator_step_the_pool_lacks_ends_the_qualification_as_a_setup_error(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A scenario's ``[[operator]]`` step naming an object the implement's pool does not have
+    is found once the pool is active, inside the run: the qualification stops with exit 2 and
+    the step named (as ``hil run`` does), not a failed test that reads as a verdict."""
+    from hil.isobus.vt.steps import OperatorScriptError
+    from hil.qualification import session as session_module
+    from plant_emulators.fertilizer.rig import FertilizerRig
+
+    message = "[operator[2]] press 'Stop' for 0.2 s: no key/button labelled 'Stop' in the pool"
+
+    def run_scenario(*args: object, **kwargs: object) -> RunResult:
+        raise OperatorScriptError(message)
+
+    monkeypatch.setattr(session_module, "run_scenario", run_scenario)
+    session = _session(tmp_path)
+    with pytest.raises(pytest.exit.Exception) as ended:
+        session.run("t::vt", FertilizerRig, "isobus-vt-operator")
+    assert ended.value.returncode == 2 and message in str(ended.value.msg)
+    assert session.setup_error is not None and message in session.setup_error
