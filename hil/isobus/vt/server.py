@@ -282,6 +282,8 @@ class VirtualTerminalServer:
             while self._next_status_s <= now_s + 1e-9:
                 self._next_status_s += STATUS_PERIOD_S
         for address, ws in list(self.sessions.items()):
+            if not self._still_its_names(ws, now_s):
+                continue
             if now_s - ws.last_seen_s >= WORKING_SET_TIMEOUT_S - 1e-9:
                 self._end(ws, now_s, "timed out",
                           f"no working set maintenance for {now_s - ws.last_seen_s:.1f} s")
@@ -463,12 +465,24 @@ class VirtualTerminalServer:
         self.port.send(REQUEST_PGN, ADDRESS_CLAIMED_PGN.to_bytes(3, "little"), destination,
                        PRIORITY + 1)
 
+    def _still_its_names(self, ws: WorkingSet, time_s: float) -> bool:
+        """Whether the working set's NAME still holds its address in the network's table; one
+        whose NAME left it ends here. The claims that move a NAME are watched as they come
+        (:meth:`_on_address_claim`), but not every one reaches the VT: a claim of the VT's
+        own address is the network's to answer (found by the peer-side fuzzing: a working
+        set's NAME claiming 0x26 left the working set at its old address)."""
+        if ws.name is None or self.port.name_of(ws.address) == ws.name:
+            return True
+        self._end(ws, time_s, "session ended",
+                  f"the working set's NAME {ws.name:016X} no longer holds 0x{ws.address:02X}")
+        return False
+
     def _session(self, address: int, time_s: float, why: str) -> WorkingSet | None:
         """The working set at ``address``, started when the address's NAME is known; ``None``
         (the message rejected, the address's claim asked for) when it is not: a working set
         belongs to a NAME (ISO 11783-5: a control function claims before anything else)."""
         ws = self.sessions.get(address)
-        if ws is not None:
+        if ws is not None and self._still_its_names(ws, time_s):
             return ws
         key, name = self._key(address)
         if name is None or address in (GLOBAL_ADDRESS, NULL_ADDRESS):
