@@ -68,7 +68,9 @@ Where commands run, and the rules that adapt them (the only ones):
    status and output as the ``hil`` script gives, without ~0.45 s of interpreter start-up
    and imports per line (~50 lines in the default run).
 
-``SKIPPED`` lists, per document, the lines that are not run, each with its reason. Any other
+``SLOW_UNITS`` lists the lines whose unit runs only on request (``slow``), each with the
+default run's test that covers it. ``SKIPPED`` lists, per document, the lines that are not
+run, each with its reason. Any other
 line is run: a new example either runs or fails until it is listed, and a ``SKIPPED`` entry whose
 line left its document fails too. After a command, the outputs its document promises are checked
 (``hil qualify``: record.json, junit.xml, report.html, and the ``--build-id`` in the record;
@@ -238,6 +240,36 @@ raw_mv, counter = 5000, 0
 received_msg = can.Message(arbitration_id=0x710, data=[0x05], is_extended_id=False)
 ''',
     ("docs/models/sowing-depth.md", 1): "seed, n, dt = 0, 100, 0.001\n",
+}
+
+#: units run only on request (``slow``): a unit holding one of these command lines (the whole
+#: line as its document gives it), each with the default run's test that covers what it shows.
+#: Everything here still runs in ``-m slow``; the default run (6 minutes on two cores) keeps
+#: the units no other test covers.
+SLOW_UNITS: dict[tuple[str, str], str] = {
+    ("docs/guide/campaigns.md", "hil campaign dut_profiles/fertilizer-piecewise-pid-daemon.toml "
+     "--samples 2 --bus inline --suite fast --workers 2 --out camp2"):
+        "a campaign on two workers (~30 s): tests/hil/campaign/test_campaign_e2e.py runs "
+        "campaigns end to end, a must-fail one failed",
+    ("docs/guide/dut-profiles.md", "hil qualify dut_profiles/fertilizer-mycontroller-firmware.toml "
+     "--bus softbus --out qual"):
+        "a firmware qualified over the software bus, then gated against a baseline (~25 s): "
+        "the tour (docs/getting-started/tour.md) runs the same three steps on the depth firmware",
+    ("docs/guide/own-rig.md", "env PYTHONPATH=motor-meter hil qualify motor-meter/pi-speed.toml "
+     "--rig motor-meter/motor-meter.rig.toml --bus inline --suite fast --out qual-pi"):
+        "the rig of your own built and both controllers qualified (~15 s): "
+        "tests/test_docs_example_own_rig.py builds the page's FMU, checks its rig file and runs "
+        "both controllers through the step suite's metric",
+    ("docs/guide/qualifying-an-isobus-implement.md", "hil qualify "
+     "dut_profiles/fertilizer-piecewise-pid-isobus-daemon.toml --bus inline -k connection "
+     "--out qual-isobus"):
+        "an ISOBUS implement's connection tests (~12 s): tests/test_discrimination_isobus.py "
+        "qualifies the same profile on the whole isobus suite",
+    ("docs/examples/byo-depth/README.md", "hil qualify docs/examples/byo-depth/"
+     "depthpro-dp200-daemon.toml --bus inline --suite fast -k step --out qual-dp200"):
+        "a foreign depth controller's step tests (~12 s): tests/reference_controllers/"
+        "test_depth_byo.py runs the DP-200's bindings against the reference's commands and the "
+        "drive",
 }
 
 SHELL_LANGS = {"sh", "bash", "shell", "console"}
@@ -415,7 +447,11 @@ def unit_params() -> list[object]:
     for doc in DOCS:
         for n, unit in enumerate(units(doc)):
             name = doc if n == 0 else f"{doc}:{blocks(doc)[unit[0]].lineno}"
-            params.append(pytest.param(doc, unit, id=name))
+            shell = [blocks(doc)[i] for i in unit if blocks(doc)[i].lang in SHELL_LANGS]
+            slow = any((doc, line.text) in SLOW_UNITS
+                       for block in shell for line in shell_lines(block))
+            params.append(pytest.param(doc, unit, id=name,
+                                       marks=[pytest.mark.slow] if slow else []))
     return params
 
 
@@ -976,6 +1012,8 @@ def test_skip_table_is_current() -> None:
                if block.lang in SHELL_LANGS for line in shell_lines(block)}
     stale = [f"{doc}: {text}" for doc, text in SKIPPED if (doc, text) not in present]
     assert not stale, f"SKIPPED entries no document has any more: {stale}"
+    stale = [f"{doc}: {text}" for doc, text in SLOW_UNITS if (doc, text) not in present]
+    assert not stale, f"SLOW_UNITS entries no document has any more: {stale}"
     assert all(doc in DOCS for doc, _ in PYTHON_PRELUDES), "a prelude for an unlisted document"
     assert all(doc in DOCS for doc, _ in DATA_CHECKS), "a data check for an unlisted document"
 

@@ -194,7 +194,7 @@ def _run(raw, groups, until_s: float = RUN_S, **kwargs):
     return bench
 
 
-@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(scenario())
 def test_whatever_a_peer_sends_the_vt_keeps_its_invariants(case) -> None:
     raw, groups = case
