@@ -80,10 +80,17 @@ class DepthFieldRun:
     Raises
     ------
     ConfigError
-        The field or the map cannot be read, or the map is not a depth map (unit ``mm``).
+        The field or the map cannot be read, the map is not a depth map (unit ``mm``), or the
+        scenario asks for the tractor's VT (the depth rig's field run has none).
     """
 
     def __init__(self, run: TractorRun, seed_line: SeedLine) -> None:
+        if run.vt:
+            # not silently ignored: a scenario that asks for the VT and its operator would
+            # judge nothing of either on this rig
+            raise ConfigError("the depth rig's field run has no Virtual Terminal (the "
+                              "fertilizer rig's has): remove vt = true and the [[operator]] "
+                              "steps", key="tractor.vt")
         self.run = run
         self.seed_line = seed_line
         self.field: Field = load_field(run.field)

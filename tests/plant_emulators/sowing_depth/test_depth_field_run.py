@@ -49,3 +49,12 @@ def test_a_rate_map_is_refused_on_the_depth_rig() -> None:
                                                                     prescription=rates))
     with pytest.raises(ConfigError, match="seeding-depth map"):
         _rig(bad)
+
+
+def test_a_scenario_asking_for_the_vt_is_refused_on_the_depth_rig() -> None:
+    """The depth rig's field run has no VT: a scenario with one is refused, not run without it
+    (its operator's steps would judge nothing)."""
+    scenario = SowingDepthRig.load_scenario("isobus-depth-field")
+    bad = dataclasses.replace(scenario, tractor=dataclasses.replace(scenario.tractor, vt=True))
+    with pytest.raises(ConfigError, match="no Virtual Terminal"):
+        _rig(bad)
