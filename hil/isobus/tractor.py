@@ -180,11 +180,18 @@ def boom_from_ddop(pool: ObjectPool) -> tuple[Boom, list[DeviceElement]]:
         return None
 
     if not sections:
-        widths = [w for w in (width_mm(e) for e in pool.elements) if w and w > 0]
-        if not widths:
+        # one working width and no sections (a seed line, a spreader): the element with the
+        # widest width is the boom, where its offsets (DDI 134/135) place it from the
+        # connector, as a section's are read below
+        widest = max(((w, e) for e in pool.elements if (w := width_mm(e)) and w > 0),
+                     key=lambda item: item[0], default=None)
+        if widest is None:
             raise DdopError("the DDOP declares no section and no working width (DDI 67/70)",
                             object_id=pool.device.object_id)
-        return Boom((Section(max(widths) / 1000.0, 0.0, 0.0),), turn_on, turn_off), []
+        width, element = widest
+        x = pool.property_value(element.element_number, dd.DEVICE_ELEMENT_OFFSET_X) or 0
+        y = pool.property_value(element.element_number, dd.DEVICE_ELEMENT_OFFSET_Y) or 0
+        return Boom((Section(width / 1000.0, y / 1000.0, x / 1000.0),), turn_on, turn_off), []
     out = []
     for element in sections:
         width = width_mm(element)
