@@ -78,6 +78,16 @@ class _Command:
     sent_s: float | None = None
 
 
+#: the bytes a VT-to-ECU message needs for what the client reads of it (a shorter one from a
+#: broken or hostile VT is ignored rather than read past its end)
+_NEEDED: dict[int, int] = {
+    Function.VT_STATUS: 4, Function.GET_MEMORY: 3, Function.GET_VERSIONS_RESPONSE: 2,
+    Function.LOAD_VERSION: 6, Function.END_OF_OBJECT_POOL: 7, Function.SOFT_KEY_ACTIVATION: 7,
+    Function.BUTTON_ACTIVATION: 7, Function.VT_CHANGE_NUMERIC_VALUE: 8,
+    Function.VT_CHANGE_STRING_VALUE: 4,
+}
+
+
 @dataclass
 class VtClient:
     """A working set's VT client (see the module docstring).
@@ -232,8 +242,8 @@ class VtClient:
 
     def _on_vt(self, msg: Received) -> None:
         d = msg.data
-        if not d:
-            return
+        if not d or len(d) < _NEEDED.get(d[0], 1):
+            return      # a VT message too short for its function: not an answer (as the C build)
         t = msg.time_s
         function = d[0]
         if function == Function.VT_STATUS:

@@ -208,3 +208,25 @@ def test_a_vt_that_starts_after_the_implement_asks_for_its_claim() -> None:
     requests = [f for f in bench.wire.frames if (f.frame.arbitration_id >> 8) & 0x3FF00
                 == 0xEA00 and f.frame.arbitration_id & 0xFF == VT_ADDRESS]
     assert requests and bytes(requests[0].frame.data[:3]) == bytes([0x00, 0xEE, 0x00])
+
+
+def test_the_vt_client_ignores_a_vt_message_too_short_for_its_function() -> None:
+    """A broken or hostile VT's short message (a 2-byte change numeric value, a 3-byte key
+    activation) is not an answer: the client ignores it, as the C build does, instead of
+    raising IndexError from the implement's stack."""
+    from hil.isobus.network import IsobusNetwork
+    from hil.isobus.port import Received
+    from hil.isobus.vt.bench import IMPLEMENT_NAME
+    from hil.isobus.vt.client import _NEEDED, VtClient
+
+    cf = IsobusNetwork(name="implement").add(IMPLEMENT_NAME, IMPLEMENT_ADDRESS, "implement")
+    client = VtClient(cf, [implement_pool().to_bytes()])
+    client.vt = VT_ADDRESS
+    states = ("wait memory", "wait versions", "wait load", "wait end of pool", "connected")
+    for function, needed in _NEEDED.items():
+        for n in range(1, needed):
+            for state in states:
+                client.state = state
+                data = bytes([function]) + b"\x00" * (n - 1)
+                client._on_vt(Received(VT_TO_ECU_PGN, data, VT_ADDRESS, IMPLEMENT_ADDRESS, 1.0))
+                assert client.state == state, (hex(function), n, state)
