@@ -29,6 +29,7 @@ def _campaign(out: Path, isolation: str) -> dict:
     return json.loads((out / "campaign.json").read_text())
 
 
+@pytest.mark.slow   # two campaigns (~15-30 s); the default run's campaigns fork their samples
 def test_forked_samples_measure_what_new_interpreters_measure(tmp_path: Path) -> None:
     forked = _campaign(tmp_path / "fork", "fork")
     fresh = _campaign(tmp_path / "process", "process")
