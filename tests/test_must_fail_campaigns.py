@@ -61,7 +61,12 @@ def test_must_fail_fails_every_sample_of_a_campaign(tmp_path: Path, profile: Pat
     if bus_only:
         [rerun] = doc["reruns"]
         assert named & set(rerun["conformance_failed"]), rerun
-        assert doc["summary"]["reason"].startswith("bus conformance failed"), doc["summary"]
+        # the campaign fails on the conformance its header names, or earlier when the defect
+        # also fails the samples (a VT client maintaining every 2 s also gets its pool active
+        # late): the rerun above still shows the named conformance failing
+        assert doc["summary"]["reason"].startswith(
+            ("bus conformance failed", f"{len(samples)} of {len(samples)} samples failed")
+        ), doc["summary"]
         return
     for sample in samples:
         assert sample["verdict"] == "fail", (sample["seed"], sample.get("error"))
