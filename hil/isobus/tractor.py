@@ -179,6 +179,12 @@ def boom_from_ddop(pool: ObjectPool) -> tuple[Boom, list[DeviceElement]]:
                 return value
         return None
 
+    def placed(element: DeviceElement, width: int) -> Section:
+        """The element's width where its offsets (DDI 134/135, mm) place it."""
+        x = pool.property_value(element.element_number, dd.DEVICE_ELEMENT_OFFSET_X) or 0
+        y = pool.property_value(element.element_number, dd.DEVICE_ELEMENT_OFFSET_Y) or 0
+        return Section(width / 1000.0, y / 1000.0, x / 1000.0)
+
     if not sections:
         # one working width and no sections (a seed line, a spreader): the element with the
         # widest width is the boom, where its offsets (DDI 134/135) place it from the
@@ -189,9 +195,7 @@ def boom_from_ddop(pool: ObjectPool) -> tuple[Boom, list[DeviceElement]]:
             raise DdopError("the DDOP declares no section and no working width (DDI 67/70)",
                             object_id=pool.device.object_id)
         width, element = widest
-        x = pool.property_value(element.element_number, dd.DEVICE_ELEMENT_OFFSET_X) or 0
-        y = pool.property_value(element.element_number, dd.DEVICE_ELEMENT_OFFSET_Y) or 0
-        return Boom((Section(width / 1000.0, y / 1000.0, x / 1000.0),), turn_on, turn_off), []
+        return Boom((placed(element, width),), turn_on, turn_off), []
     out = []
     for element in sections:
         width = width_mm(element)
@@ -199,11 +203,9 @@ def boom_from_ddop(pool: ObjectPool) -> tuple[Boom, list[DeviceElement]]:
             raise DdopError(f"section element {element.element_number} has no working width "
                             f"(a DDI 67 or 70 property > 0 mm)", object_id=element.object_id,
                             parent_id=element.parent_id)
-        x = pool.property_value(element.element_number, dd.DEVICE_ELEMENT_OFFSET_X) or 0
-        y = pool.property_value(element.element_number, dd.DEVICE_ELEMENT_OFFSET_Y) or 0
-        out.append((y, Section(width / 1000.0, y / 1000.0, x / 1000.0), element))
-    out.sort(key=lambda item: item[0])
-    return (Boom(tuple(s for _, s, _ in out), turn_on, turn_off), [e for _, _, e in out])
+        out.append((placed(element, width), element))
+    out.sort(key=lambda item: item[0].lateral_m)
+    return (Boom(tuple(s for s, _ in out), turn_on, turn_off), [e for _, e in out])
 
 
 class Tractor:
