@@ -1010,10 +1010,9 @@ def test_skip_table_is_current() -> None:
     """A skipped line that left its document is a stale entry (and hides nothing)."""
     present = {(doc, line.text) for doc in DOCS for block in blocks(doc)
                if block.lang in SHELL_LANGS for line in shell_lines(block)}
-    stale = [f"{doc}: {text}" for doc, text in SKIPPED if (doc, text) not in present]
-    assert not stale, f"SKIPPED entries no document has any more: {stale}"
-    stale = [f"{doc}: {text}" for doc, text in SLOW_UNITS if (doc, text) not in present]
-    assert not stale, f"SLOW_UNITS entries no document has any more: {stale}"
+    for name, table in (("SKIPPED", SKIPPED), ("SLOW_UNITS", SLOW_UNITS)):
+        stale = [f"{doc}: {text}" for doc, text in table if (doc, text) not in present]
+        assert not stale, f"{name} entries no document has any more: {stale}"
     assert all(doc in DOCS for doc, _ in PYTHON_PRELUDES), "a prelude for an unlisted document"
     assert all(doc in DOCS for doc, _ in DATA_CHECKS), "a data check for an unlisted document"
 
