@@ -30,6 +30,7 @@ from hil.isobus.can_id import decode_id
 from hil.softbus import SoftwareBus
 from reference_controllers.vectors import VECTOR_DIR
 from reference_controllers.vectors.isobus import DDOP_FILE, SUFFIX, ddop_lines, record, scenarios
+from tests.helpers.fresh_vectors import assert_vector_file_fresh
 
 ROOT = Path(__file__).resolve().parents[2]
 HIL = str(Path(sys.executable).with_name("hil"))
@@ -66,15 +67,9 @@ SLOW_SCENARIOS = {"isobus-drive"}
     pytest.param(s, id=s.name, marks=[pytest.mark.slow] if s.name in SLOW_SCENARIOS else [])
     for s in scenarios()])
 def test_the_committed_vectors_are_what_the_python_controller_sends(scenario) -> None:
-    path = VECTOR_DIR / f"{scenario.name}{SUFFIX}"
-    committed = path.read_text().splitlines()
-    fresh = record(scenario)
-    first = next((i for i, (a, b) in enumerate(zip(committed, fresh, strict=False)) if a != b),
-                 min(len(committed), len(fresh)))
-    assert committed == fresh, (
-        f"{path.name} is stale at line {first + 1}: committed {committed[first:first + 1]}, "
-        f"the Python controller now {fresh[first:first + 1]}; rewrite it with "
-        f"python -m reference_controllers.vectors.isobus and run ctest")
+    assert_vector_file_fresh(VECTOR_DIR / f"{scenario.name}{SUFFIX}", record(scenario),
+                             twin="the Python controller",
+                             rewrite="python -m reference_controllers.vectors.isobus")
 
 
 def test_the_committed_ddop_vector_is_the_python_pool() -> None:

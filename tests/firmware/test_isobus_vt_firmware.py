@@ -34,6 +34,7 @@ from hil.softbus import SoftwareBus
 from plant_emulators.fertilizer.frames import FertilizerDatabase
 from reference_controllers.fertilizer.isobus_vt import IsobusVtFlowController
 from reference_controllers.fertilizer.operator_pool import IDS
+from tests.helpers.fresh_vectors import assert_vector_file_fresh
 
 ROOT = Path(__file__).resolve().parents[2]
 APP = "agrihil-fertilizer-isobus-fw"
@@ -80,15 +81,9 @@ FAST = {"vt-no-memory", "vt-concurrent"}
     pytest.param(s, id=s.name, marks=[] if s.name in FAST else [pytest.mark.slow])
     for s in rec.scenarios()])
 def test_the_committed_vt_vectors_are_what_the_python_implement_sends(scenario) -> None:
-    path = rec.DATA / f"{scenario.name}{rec.SUFFIX}"
-    committed = path.read_text().splitlines()
-    fresh = rec.record(scenario)
-    first = next((i for i, (a, b) in enumerate(zip(committed, fresh, strict=False)) if a != b),
-                 min(len(committed), len(fresh)))
-    assert committed == fresh, (
-        f"{path.name} is stale at line {first + 1}: committed {committed[first:first + 1]}, "
-        f"the Python implement now {fresh[first:first + 1]}; rewrite it with "
-        f"python tests/firmware/isobus_vt_vectors.py and run ctest")
+    assert_vector_file_fresh(rec.DATA / f"{scenario.name}{rec.SUFFIX}", rec.record(scenario),
+                             twin="the Python implement",
+                             rewrite="python tests/firmware/isobus_vt_vectors.py")
 
 
 def test_the_committed_vt_pool_file_is_the_python_pool() -> None:

@@ -1,7 +1,9 @@
 """The committed replay vectors of a C build are what its Python twin writes today.
 
 ctest replays them through the C build; stale vectors would prove nothing about the Python
-build they stand for. Used by the RC-400 and DP-200 firmware tests.
+build they stand for. Used by the RC-400 and DP-200 firmware tests (whole files a script
+writes) and the ISOBUS ones (one vector file recorded in process, named at its first stale
+line).
 """
 
 from __future__ import annotations
@@ -10,7 +12,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-__all__ = ["assert_vectors_fresh"]
+__all__ = ["assert_vector_file_fresh", "assert_vectors_fresh"]
 
 
 def assert_vectors_fresh(script: Path, committed: Path, scratch: Path, *, root: Path,
@@ -24,3 +26,14 @@ def assert_vectors_fresh(script: Path, committed: Path, scratch: Path, *, root: 
     for name in written:
         assert (scratch / name).read_text() == (committed / name).read_text(), \
             f"{name} is stale: rerun {script.relative_to(root)} {committed.relative_to(root)}"
+
+
+def assert_vector_file_fresh(path: Path, fresh: list[str], *, twin: str, rewrite: str) -> None:
+    """Require the committed vector file ``path`` to be ``fresh`` (the lines its Python
+    ``twin`` records today), naming the first line that differs and how to ``rewrite`` it."""
+    committed = path.read_text().splitlines()
+    first = next((i for i, (a, b) in enumerate(zip(committed, fresh, strict=False)) if a != b),
+                 min(len(committed), len(fresh)))
+    assert committed == fresh, (
+        f"{path.name} is stale at line {first + 1}: committed {committed[first:first + 1]}, "
+        f"{twin} now {fresh[first:first + 1]}; rewrite it with {rewrite} and run ctest")
